@@ -1,0 +1,125 @@
+"""The ``poles`` command line: one subcommand per pipeline stage."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from detector.datasets.model import DatasetError
+
+NOT_BUILT = {
+    "augment": "augment a dataset offline (7 copies per training image, as the thesis did)",
+    "split": "re-split a dataset 70/20/10, stratified by class",
+    "train": "train a YOLOv8 segmentation model on the CPU",
+    "export": "export a trained model to ONNX (FP32 / INT8) and verify it",
+    "calibrate": "fit the range power laws from calibration shots",
+    "evaluate": "precision, recall and mask IoU per image on held-out frames",
+    "slam": "run an EKF SLAM back end on a simulated walk or a log",
+}
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"size {text!r} is not WIDTHxHEIGHT, e.g. 640x480") from None
+    if width < 32 or height < 32:
+        raise argparse.ArgumentTypeError(f"size {text!r} is too small (at least 32x32)")
+    return width, height
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="poles", description="Coloured-pole landmark detector pipeline for the Nao.")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    synth = sub.add_parser("synth", help="render a synthetic annotated pole dataset (Roboflow YOLOv8 layout)")
+    synth.add_argument("--out", type=Path, required=True, help="output dataset folder (must not exist, or use --force)")
+    synth.add_argument("--images", type=int, default=500, help="number of images (default 500)")
+    synth.add_argument("--seed", type=int, default=0, help="random seed: same seed, same dataset")
+    synth.add_argument("--size", type=_size, default=(640, 480), help="image size WIDTHxHEIGHT (default 640x480)")
+    synth.add_argument("--hfov", type=float, default=56.3, help="horizontal field of view in degrees (default 56.3)")
+    synth.add_argument("--calibration-shots", action="store_true",
+                       help="one pole per image at known distances 0.5-5 m and angles 0, +-10, +-20 deg")
+    synth.add_argument("--preview", action="store_true", help="also write preview.png, a contact sheet with labels drawn")
+    synth.add_argument("--workers", type=int, default=None, help="render processes (default: every core)")
+    synth.add_argument("--force", action="store_true", help="replace --out if it exists")
+
+    check = sub.add_parser("check", help="validate a dataset and print a summary and every problem")
+    check.add_argument("data", type=Path, help="dataset folder (with data.yaml) or Roboflow COCO export folder")
+    check.add_argument("--fix", action="store_true", help="write a cleaned copy to --out (never in place)")
+    check.add_argument("--out", type=Path, help="where --fix writes the cleaned copy")
+    check.add_argument("--notes", action="store_true", help="also list notes (e.g. images without a label file)")
+    check.add_argument("--force", action="store_true", help="replace --out if it exists")
+
+    convert = sub.add_parser("convert", help="write any readable dataset (e.g. a COCO export) in the Roboflow YOLOv8 layout")
+    convert.add_argument("data", type=Path)
+    convert.add_argument("--out", type=Path, required=True)
+    convert.add_argument("--force", action="store_true")
+
+    demo = sub.add_parser("demo", help="run the whole pipeline on a synthetic dataset")
+    demo.add_argument("--out", type=Path, default=Path("runs/demo"))
+    demo.add_argument("--images", type=int, default=300)
+    demo.add_argument("--seed", type=int, default=0)
+
+    for name, text in NOT_BUILT.items():
+        sub.add_parser(name, help=f"{text} (not built yet)").add_argument("rest", nargs=argparse.REMAINDER)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return COMMANDS.get(args.command, _not_built)(args)
+    except (DatasetError, FileExistsError, FileNotFoundError, ValueError) as exc:
+        print(f"poles {args.command}: {exc}", file=sys.stderr)
+        return 2
+
+
+def _not_built(args: argparse.Namespace) -> int:
+    print(f"poles {args.command}: not built yet ({NOT_BUILT[args.command]}).", file=sys.stderr)
+    return 2
+
+
+def _synth(args: argparse.Namespace) -> int:
+    from detector.synth.generate import SynthJob, generate_dataset
+
+    if args.images < 1:
+        raise ValueError("--images must be at least 1")
+    job = SynthJob(args.images, args.seed, *args.size, hfov_deg=args.hfov, calibration_shots=args.calibration_shots)
+    out = generate_dataset(args.out, job, workers=args.workers, preview=args.preview, force=args.force)
+    print(f"wrote {args.images} images to {out}")
+    return 0
+
+
+def _check(args: argparse.Namespace) -> int:
+    from detector.datasets.check import check_dataset, print_report, write_fixed_copy
+
+    if args.fix and args.out is None:
+        raise ValueError("--fix needs --out CLEAN: the cleaned copy is never written in place")
+    report = check_dataset(args.data)
+    print_report(report, show_notes=args.notes)
+    if args.fix:
+        print(f"cleaned copy: {write_fixed_copy(report, args.out, force=args.force)}")
+    return 1 if report.errors else 0
+
+
+def _convert(args: argparse.Namespace) -> int:
+    from detector.datasets import load_dataset, write_dataset
+
+    dataset = load_dataset(args.data).require_clean()
+    print(f"wrote {write_dataset(args.out, dataset, force=args.force)}")
+    return 0
+
+
+def _demo(args: argparse.Namespace) -> int:
+    """Until the full demo lands: render a dataset with a preview, then check it."""
+    if _synth(argparse.Namespace(out=args.out / "data", images=args.images, seed=args.seed, size=(640, 480), hfov=56.3,
+                                 calibration_shots=False, preview=True, workers=None, force=True)):
+        return 1
+    return _check(argparse.Namespace(data=args.out / "data", fix=False, out=None, notes=False, force=False))
+
+
+COMMANDS = {"synth": _synth, "check": _check, "convert": _convert, "demo": _demo}
+
+if __name__ == "__main__":
+    sys.exit(main())

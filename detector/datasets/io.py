@@ -1,0 +1,208 @@
+"""Read a dataset in the Roboflow "YOLOv8" segmentation layout (or a COCO export), and write the layout atomically."""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+from types import TracebackType
+
+import yaml
+
+from detector.datasets.labels import format_label_line, parse_label_file
+from detector.datasets.model import SPLITS, Dataset, DatasetError, Instance, Problem, Sample
+from detector.datasets.names import canonical_class
+from naoslam.landmarks import CLASSES
+
+IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".webp", ".tif", ".tiff"}
+#: data.yaml key -> split folder name.
+YAML_SPLIT_KEYS = {"train": "train", "val": "valid", "test": "test"}
+
+
+def load_dataset(path: str | Path) -> Dataset:
+    """Read a dataset: a folder with ``data.yaml`` (or the yaml itself), or a Roboflow COCO export folder.
+
+    Problems are collected in ``Dataset.problems``; call ``require_clean()`` to refuse a dataset with errors.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise DatasetError([Problem("error", path, None, "no such file or folder", "give the dataset folder (with data.yaml)")])
+    yaml_path = path if path.is_file() and path.suffix in (".yaml", ".yml") else path / "data.yaml"
+    if yaml_path.is_file():
+        return _load_yolo(yaml_path)
+    from detector.datasets.coco import find_coco_files, load_coco
+
+    if find_coco_files(path):
+        return load_coco(path)
+    raise DatasetError([Problem("error", path, None, "neither data.yaml nor a COCO _annotations.coco.json found",
+                                "point to a Roboflow 'YOLOv8' or 'COCO' segmentation export folder")])
+
+
+def _load_yolo(yaml_path: Path) -> Dataset:
+    root = yaml_path.parent
+    problems: list[Problem] = []
+    try:
+        config = yaml.safe_load(yaml_path.read_text(encoding="utf-8")) or {}
+    except (OSError, yaml.YAMLError) as exc:
+        raise DatasetError([Problem("error", yaml_path, getattr(getattr(exc, "problem_mark", None), "line", None),
+                                    f"cannot read YAML ({exc})", "fix the YAML syntax")]) from exc
+    names = _class_names(yaml_path, config, problems)
+    samples: list[Sample] = []
+    base = root / str(config.get("path", "")) if config.get("path") else root
+    for key, split in YAML_SPLIT_KEYS.items():
+        images_dir = _split_folder(base, config.get(key), split)
+        if images_dir is None:
+            continue
+        samples += _read_split(split, images_dir, names, problems)
+    if not any(s.image for s in samples):
+        problems.append(Problem("error", yaml_path, None, "no images found in any split",
+                                "the layout is train/images, valid/images, test/images beside data.yaml"))
+    problems += _duplicate_stems(samples)
+    return Dataset(root, samples, problems)
+
+
+def _class_names(yaml_path: Path, config: dict, problems: list[Problem]) -> tuple[str | None, ...]:
+    raw = config.get("names")
+    if isinstance(raw, dict):
+        raw = [raw[k] for k in sorted(raw)]
+    if not isinstance(raw, list) or not raw:
+        raise DatasetError([Problem("error", yaml_path, None, "no `names` list",
+                                    "add `names: ['bp', 'gp', 'yp', 'pb', 'pg', 'py']` (in your class order)")])
+    names = tuple(canonical_class(n) for n in raw)
+    for index, (given, code) in enumerate(zip(raw, names)):
+        if code is None:
+            problems.append(Problem("error", yaml_path, None, f"class {index} {given!r} names no landmark",
+                                    f"rename it to one of {' '.join(CLASSES)} (top band first)"))
+    if "nc" in config and config["nc"] != len(raw):
+        problems.append(Problem("warning", yaml_path, None, f"nc is {config['nc']} but names has {len(raw)} entries",
+                                "set nc to the length of names"))
+    return names
+
+
+def _split_folder(base: Path, value, split: str) -> Path | None:
+    """The images folder of one split: the yaml value relative to the yaml (Roboflow writes ``../train/images``)."""
+    candidates = [base / split / "images"]
+    if isinstance(value, str):
+        candidates = [base / value] + ([base / value[3:]] if value.startswith("../") else []) + candidates
+    return next((c.resolve() for c in candidates if c.is_dir()), None)
+
+
+def _read_split(split: str, images_dir: Path, names, problems: list[Problem]) -> list[Sample]:
+    labels_dir = images_dir.parent / "labels"
+    images = {p.stem: p for p in sorted(images_dir.iterdir()) if p.suffix.lower() in IMAGE_SUFFIXES}
+    seen: dict[str, Path] = {}
+    for p in sorted(images_dir.iterdir()):
+        if p.suffix.lower() in IMAGE_SUFFIXES:
+            if p.stem in seen:
+                problems.append(Problem("error", p, None, f"same file stem as {seen[p.stem].name}: one label cannot serve both",
+                                        "rename or delete one of the two images"))
+            seen[p.stem] = p
+    labels = {p.stem: p for p in sorted(labels_dir.glob("*.txt"))} if labels_dir.is_dir() else {}
+    samples = []
+    for stem in sorted(set(images) | set(labels)):
+        image, label = images.get(stem), labels.get(stem)
+        instances: list[Instance] = []
+        if label is not None:
+            instances, found = parse_label_file(label, names)
+            problems += found
+            if image is None:
+                problems.append(Problem("error", label, None, "label without an image",
+                                        f"add {stem}.jpg to {images_dir} or delete the label"))
+        else:
+            problems.append(Problem("note", image, None, "image without a label file: read as a negative (no landmark)",
+                                    "add an empty label file to make that explicit"))
+        samples.append(Sample(split, image, label, instances))
+    return samples
+
+
+def _duplicate_stems(samples: list[Sample]) -> list[Problem]:
+    first: dict[str, Sample] = {}
+    problems = []
+    for sample in samples:
+        if sample.image is None:
+            continue
+        other = first.setdefault(sample.stem, sample)
+        if other is not sample and other.split != sample.split:
+            problems.append(Problem("error", sample.image, None,
+                                    f"the same file name is in {other.split} too ({other.image}): a leak between splits",
+                                    "keep each image in one split only"))
+    return problems
+
+
+class DatasetWriter:
+    """Write a dataset in the Roboflow layout into a temporary sibling folder, then move it into place.
+
+    Nothing appears at ``out`` unless every sample was written; an existing ``out`` is replaced only with
+    ``force``, and never when it is (or holds, or lies inside) one of the ``protect`` folders (the inputs).
+    """
+
+    def __init__(self, out: str | Path, *, force: bool = False, protect: tuple[Path, ...] = ()):
+        self.out = Path(out).resolve()
+        for guarded in protect:
+            guarded = Path(guarded).resolve()
+            if self.out == guarded or guarded in self.out.parents or self.out in guarded.parents:
+                raise ValueError(f"output {self.out} overlaps the input {guarded}: choose another --out (inputs are never written)")
+        if self.out.exists() and any(self.out.iterdir()) and not force:
+            raise FileExistsError(f"{self.out} exists and is not empty: choose another --out or pass --force to replace it")
+        self.force = force
+        self.counts = {split: 0 for split in SPLITS}
+
+    def __enter__(self) -> "DatasetWriter":
+        self.out.parent.mkdir(parents=True, exist_ok=True)
+        self.tmp = Path(tempfile.mkdtemp(prefix=f".{self.out.name}.partial-", dir=self.out.parent))
+        for split in SPLITS:
+            (self.tmp / split / "images").mkdir(parents=True)
+            (self.tmp / split / "labels").mkdir(parents=True)
+        return self
+
+    def add(self, split: str, filename: str, image: bytes | Path, instances: list[Instance]) -> Path:
+        """Add one image (encoded bytes, or a file to copy unchanged) and its instances; returns the image's final path."""
+        if split not in SPLITS:
+            raise ValueError(f"unknown split {split!r}; expected one of {SPLITS}")
+        target = self.tmp / split / "images" / filename
+        if isinstance(image, Path):
+            shutil.copyfile(image, target)
+        else:
+            target.write_bytes(image)
+        lines = [format_label_line(CLASSES.index(i.cls), i.polygon) for i in instances]
+        (self.tmp / split / "labels" / f"{Path(filename).stem}.txt").write_text("".join(f"{line}\n" for line in lines))
+        self.counts[split] += 1
+        return self.out / split / "images" / filename
+
+    def write_text(self, relative: str, text: str) -> None:
+        """Add any other file (a report, annotations.json) at a path relative to the dataset root."""
+        target = self.tmp / relative
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_text(text, encoding="utf-8")
+
+    def write_json(self, relative: str, data) -> None:
+        self.write_text(relative, json.dumps(data, indent=1))
+
+    def __exit__(self, exc_type: type | None, exc: BaseException | None, tb: TracebackType | None) -> None:
+        if exc_type is not None:
+            shutil.rmtree(self.tmp, ignore_errors=True)
+            return
+        self.write_text("data.yaml", data_yaml_text())
+        if self.out.exists():
+            old = self.out.with_name(f".{self.out.name}.old-{os.getpid()}")
+            os.replace(self.out, old)
+            os.replace(self.tmp, self.out)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(self.tmp, self.out)
+
+
+def data_yaml_text() -> str:
+    """data.yaml as Roboflow writes it (paths relative to the yaml, canonical class order)."""
+    return ("train: ../train/images\nval: ../valid/images\ntest: ../test/images\n\n"
+            f"nc: {len(CLASSES)}\nnames: {list(CLASSES)}\n")
+
+
+def write_dataset(out: str | Path, dataset: Dataset, *, force: bool = False) -> Path:
+    """Copy a dataset's images and instances into a new Roboflow-layout folder; returns its path."""
+    with DatasetWriter(out, force=force, protect=(dataset.root,)) as writer:
+        for sample in dataset.samples:
+            if sample.image is not None:
+                writer.add(sample.split, sample.image.name, sample.image, sample.instances)
+    return writer.out

@@ -1,0 +1,174 @@
+"""``poles synth``: render an annotated dataset in the Roboflow layout, in parallel and reproducibly."""
+from __future__ import annotations
+
+import itertools
+import multiprocessing as mp
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+from tqdm import tqdm
+
+from detector.datasets.io import DatasetWriter
+from detector.datasets.model import Instance
+from detector.datasets.polygons import mask_to_polygon
+from detector.preview import contact_sheet, draw_instances
+from detector.synth.effects import apply_camera_effects, camera_effects
+from detector.synth.render import render_scene
+from detector.synth.scene import SceneConfig, calibration_scene, sample_scene
+from naoslam.camera import PinholeCamera
+from naoslam.landmarks import CLASSES
+
+#: Thesis split: 70 % train, 20 % test, 10 % valid.
+SPLIT_RATIOS = {"train": 0.7, "test": 0.2, "valid": 0.1}
+CALIBRATION_RANGES_M = (0.5, 0.75, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0)
+CALIBRATION_ANGLES_DEG = (0.0, -10.0, 10.0, -20.0, 20.0)
+#: A landmark with fewer visible pixels than this is too small to annotate (and to learn from).
+MIN_LABEL_PIXELS = 15
+PREVIEW_IMAGES = 12
+
+
+@dataclass(frozen=True)
+class SynthJob:
+    """What to render: image count, seed, frame size, field of view, and whether these are calibration shots."""
+
+    images: int
+    seed: int
+    width: int = 640
+    height: int = 480
+    hfov_deg: float = 56.3
+    calibration_shots: bool = False
+    config: SceneConfig = SceneConfig()
+
+    @property
+    def camera(self) -> PinholeCamera:
+        return PinholeCamera(self.width, self.height, self.hfov_deg)
+
+
+@dataclass
+class RenderedSample:
+    """One encoded image with its labels and per-landmark truth, as a worker returns it."""
+
+    index: int
+    jpeg: bytes
+    instances: list[Instance]
+    truth: list[dict]
+    camera: dict
+
+
+def split_names(n: int, seed: int) -> list[str]:
+    """Assign ``n`` images to train/test/valid in the thesis's 70/20/10 ratio, shuffled by ``seed``."""
+    counts = {split: round(ratio * n) for split, ratio in SPLIT_RATIOS.items()}
+    counts["valid"] = n - counts["train"] - counts["test"]
+    order = [split for split, count in counts.items() for _ in range(count)]
+    return [order[i] for i in np.random.default_rng([seed, 0x5B117]).permutation(n)]
+
+
+_EFFECTS = None
+
+
+def render_one(job: SynthJob, index: int) -> RenderedSample:
+    """Render image ``index`` of the job; depends only on (job, index), never on the worker."""
+    global _EFFECTS
+    if _EFFECTS is None:
+        _EFFECTS = camera_effects()
+    rng = np.random.default_rng([job.seed, index])
+    camera = job.camera
+    if job.calibration_shots:
+        grid = list(itertools.product(CALIBRATION_RANGES_M, CALIBRATION_ANGLES_DEG))
+        range_m, angle = grid[index % len(grid)]
+        scene = calibration_scene(rng, camera, CLASSES[index % len(CLASSES)], range_m, angle, job.config)
+    else:
+        scene = sample_scene(rng, camera, job.config)
+    frame = render_scene(scene, job.config.pole)
+    image = apply_camera_effects(_EFFECTS, (frame.image * 255.0 + 0.5).astype(np.uint8), scene.effects_seed)
+    ok, encoded = cv2.imencode(".jpg", cv2.cvtColor(image, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, scene.jpeg_quality])
+    instances, truth = [], []
+    size = np.array([camera.width, camera.height], np.float64)
+    for pole in frame.poles:
+        if pole.mask.sum() < MIN_LABEL_PIXELS:
+            continue
+        polygon = mask_to_polygon(pole.mask)
+        if polygon is None:
+            continue
+        instances.append(Instance(pole.cls, polygon / size))
+        truth.append({"cls": pole.cls, "class_id": CLASSES.index(pole.cls), "range_m": round(pole.range_m, 4),
+                      "bearing_rad": round(pole.bearing_rad, 5), "visible_fraction": round(pole.visible_fraction, 4),
+                      "partial": pole.partial, "band_divide_centre_px": [round(c, 2) for c in pole.band_divide_px],
+                      "band_centre_distance_px": round(pole.band_centre_distance_px, 2),
+                      "position_m": [round(c, 4) for c in pole.position_m], "pixels": int(pole.mask.sum())})
+    pose = scene.pose
+    camera_info = {"x": round(pose.x, 4), "y": round(pose.y, 4), "height_m": round(pose.z, 4), "yaw_rad": round(pose.yaw, 5),
+                   "pitch_rad": round(pose.pitch, 5), "roll_rad": round(pose.roll, 5)}
+    return RenderedSample(index, encoded.tobytes(), instances, truth, camera_info)
+
+
+def _render_star(args: tuple[SynthJob, int]) -> RenderedSample:
+    return render_one(*args)
+
+
+def generate_dataset(out: str | Path, job: SynthJob, *, workers: int | None = None, preview: bool = False,
+                     force: bool = False, progress: bool = True) -> Path:
+    """Render ``job.images`` frames into a Roboflow-layout dataset at ``out`` with ``annotations.json``.
+
+    Calibration shots all go to the ``test`` split; other frames are split 70/20/10 (train/test/valid).
+    """
+    splits = ["test"] * job.images if job.calibration_shots else split_names(job.images, job.seed)
+    workers = max(1, min(workers or os.cpu_count() or 1, job.images))
+    annotations = {"classes": list(CLASSES), "generator": _describe(job), "fields": ANNOTATION_FIELDS, "images": {}}
+    tiles = []
+    with DatasetWriter(out, force=force) as writer:
+        with _pool(workers) as pool:
+            results = (pool.imap(_render_star, ((job, i) for i in range(job.images)), chunksize=4) if pool
+                       else (render_one(job, i) for i in range(job.images)))
+            for sample in tqdm(results, total=job.images, desc="rendering", unit="img", disable=not progress):
+                name = f"{'calib' if job.calibration_shots else 'synth'}_{sample.index:05d}.jpg"
+                writer.add(splits[sample.index], name, sample.jpeg, sample.instances)
+                annotations["images"][name] = {"split": splits[sample.index], "width": job.width, "height": job.height,
+                                               "camera": sample.camera, "landmarks": sample.truth}
+                if preview and len(tiles) < PREVIEW_IMAGES:
+                    image = cv2.imdecode(np.frombuffer(sample.jpeg, np.uint8), cv2.IMREAD_COLOR)
+                    tiles.append((draw_instances(image, sample.instances), name))
+        writer.write_json("annotations.json", annotations)
+    if preview and tiles:
+        print(f"preview: {contact_sheet(tiles, writer.out / 'preview.png')}")
+    return writer.out
+
+
+class _pool:
+    """A process pool for ``workers`` > 1, or nothing (render in this process)."""
+
+    def __init__(self, workers: int):
+        self.workers = workers
+        self.pool = None
+
+    def __enter__(self):
+        if self.workers > 1:
+            self.pool = mp.get_context("spawn" if os.name == "nt" else "fork").Pool(self.workers)
+        return self.pool
+
+    def __exit__(self, *exc) -> None:
+        if self.pool is not None:
+            self.pool.terminate()
+
+
+def _describe(job: SynthJob) -> dict:
+    pole = job.config.pole
+    return {"seed": job.seed, "images": job.images, "width": job.width, "height": job.height, "hfov_deg": job.hfov_deg,
+            "focal_px": round(job.camera.focal_px, 3), "calibration_shots": job.calibration_shots,
+            "pole": {"diameter_m": pole.diameter, "band_height_m": pole.band_height, "base_height_m": pole.base_height}}
+
+
+ANNOTATION_FIELDS = {
+    "range_m": "horizontal distance from the camera to the pole axis at the ground",
+    "bearing_rad": "direction of the pole from the camera's heading, left positive",
+    "visible_fraction": "visible pixels / pixels of the whole unoccluded silhouette (also outside the image)",
+    "partial": "true if part of the pole's silhouette lies outside the image",
+    "band_divide_centre_px": "projection of the pole-axis point between the two coloured bands, x right, y down",
+    "band_centre_distance_px": "pixel distance between the projected centres of the two coloured bands",
+    "position_m": "pole base on the field (x, y)",
+    "pixels": "visible mask area in pixels",
+    "camera": "camera position on the field, height, yaw, pitch (down positive), roll",
+}

@@ -1,0 +1,90 @@
+"""Render a scene to an image with exact per-pole visible masks, ranges, bearings and band geometry."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from detector.synth.background import render_background
+from detector.synth.objects import Quad
+from detector.synth.raycast import Hit, cast_cylinder, cast_quad, world_rays
+from detector.synth.scene import Scene
+from naoslam.landmarks import PoleGeometry
+
+
+@dataclass
+class PoleTruth:
+    """Ground truth of one landmark in a frame: what is visible of it and where it is."""
+
+    cls: str
+    mask: np.ndarray
+    range_m: float
+    bearing_rad: float
+    visible_fraction: float
+    partial: bool
+    band_divide_px: tuple[float, float]
+    band_centre_distance_px: float
+    position_m: tuple[float, float]
+
+
+@dataclass
+class Frame:
+    """A rendered frame: RGB float image in 0..1 (before camera effects) and the poles' truths."""
+
+    image: np.ndarray
+    poles: list[PoleTruth]
+
+
+def render_scene(scene: Scene, geometry: PoleGeometry = PoleGeometry()) -> Frame:
+    """Ray-cast the background, every quad and cylinder with a depth test; masks are what stays visible."""
+    cam, pose = scene.camera, scene.pose
+    colour, depth = render_background(pose.position, world_rays((0, 0, cam.width, cam.height), pose, cam),
+                                      scene.room, scene.lighting)
+    owner = np.full((cam.height, cam.width), -1, np.int32)
+    objects = [*scene.quads, *scene.cylinders]
+    for index, obj in enumerate(objects):
+        hit = cast_quad(obj, pose, cam, scene.lighting) if isinstance(obj, Quad) else cast_cylinder(obj, pose, cam, scene.lighting)
+        if hit is not None:
+            _composite(hit, index, colour, depth, owner)
+    poles = []
+    for index, cylinder in enumerate(objects):
+        if isinstance(cylinder, Quad) or cylinder.label is None:
+            continue
+        visible = owner == index
+        if not visible.any():
+            continue
+        full = cast_cylinder(cylinder, pose, cam, scene.lighting, clip=False)
+        full_area = int(full.mask.sum()) if full is not None else 0
+        in_image_area = _in_image_area(full, cam.width, cam.height)
+        range_m, bearing = pose.range_bearing_to(float(cylinder.base[0]), float(cylinder.base[1]))
+        divide = _project(scene, cylinder.point_on_axis(geometry.divide_height))
+        upper = _project(scene, cylinder.point_on_axis(geometry.divide_height + geometry.band_height / 2))
+        lower = _project(scene, cylinder.point_on_axis(geometry.divide_height - geometry.band_height / 2))
+        poles.append(PoleTruth(cylinder.label, visible, range_m, bearing, float(visible.sum()) / max(full_area, 1),
+                               in_image_area < full_area, divide, float(math.dist(upper, lower)),
+                               (float(cylinder.base[0]), float(cylinder.base[1]))))
+    return Frame(np.clip(colour, 0.0, 1.0), poles)
+
+
+def _composite(hit: Hit, index: int, colour: np.ndarray, depth: np.ndarray, owner: np.ndarray) -> None:
+    h, w = hit.mask.shape
+    region = (slice(hit.v0, hit.v0 + h), slice(hit.u0, hit.u0 + w))
+    nearer = hit.mask & (hit.depth < depth[region])
+    colour[region][nearer] = hit.colour[nearer]
+    depth[region][nearer] = hit.depth[nearer]
+    owner[region][nearer] = index
+
+
+def _in_image_area(hit: Hit | None, width: int, height: int) -> int:
+    if hit is None:
+        return 0
+    h, w = hit.mask.shape
+    rows = slice(max(0, -hit.v0), max(0, min(h, height - hit.v0)))
+    cols = slice(max(0, -hit.u0), max(0, min(w, width - hit.u0)))
+    return int(hit.mask[rows, cols].sum())
+
+
+def _project(scene: Scene, point: np.ndarray) -> tuple[float, float]:
+    u, v = scene.camera.project(scene.pose.to_camera(point))
+    return float(u), float(v)

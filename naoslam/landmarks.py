@@ -1,0 +1,51 @@
+"""The six coloured pole landmarks: class codes, band colours and the cylinder's dimensions."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+#: Canonical class order. A code names the two coloured bands top to bottom (``bp`` = blue over pink).
+CLASSES: tuple[str, ...] = ("bp", "gp", "yp", "pb", "pg", "py")
+
+#: Colour words for each band letter (used in messages and to read datasets that spell colours out).
+BAND_COLOURS: dict[str, str] = {"p": "pink", "b": "blue", "y": "yellow", "g": "green"}
+
+
+def bands_of(code: str) -> tuple[str, str]:
+    """Return the (top, bottom) band colour names of a class code, e.g. ``"bp" -> ("blue", "pink")``."""
+    if code not in CLASSES:
+        raise ValueError(f"unknown landmark class {code!r}; expected one of {', '.join(CLASSES)}")
+    return BAND_COLOURS[code[0]], BAND_COLOURS[code[1]]
+
+
+@dataclass(frozen=True)
+class PoleGeometry:
+    """Dimensions of a landmark cylinder in metres.
+
+    Defaults: the 2018 thesis measured 19.7-21.9 cm for both coloured bands together (so about 10.5 cm each);
+    the white base is about as tall as both bands together (the real-poles annotations); the diameter of 9 cm is
+    what the 2024 thesis's width and height power laws imply at 1-2 m (height about 0.42 m, width 8-10 cm with
+    a 56.3 deg, 640 px camera).
+    """
+
+    diameter: float = 0.09
+    band_height: float = 0.105
+    base_height: float = 0.21
+
+    @property
+    def radius(self) -> float:
+        return self.diameter / 2.0
+
+    @property
+    def height(self) -> float:
+        """Total height: white base plus both coloured bands."""
+        return self.base_height + 2.0 * self.band_height
+
+    @property
+    def divide_height(self) -> float:
+        """Height above the ground of the line between the two coloured bands."""
+        return self.base_height + self.band_height
+
+    @property
+    def upright_aspect(self) -> float:
+        """Width / height of an upright, fully visible pole seen side on."""
+        return self.diameter / self.height

@@ -1,0 +1,212 @@
+"""Reading, checking, fixing and converting datasets: every bad input names its file, line and fix."""
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from detector.cli import main
+from detector.datasets import DatasetError, load_dataset, write_dataset
+from detector.datasets.check import check_dataset, write_fixed_copy
+from detector.datasets.names import canonical_class
+from naoslam.landmarks import CLASSES
+
+
+def _first_labelled(root: Path, split: str = "train") -> Path:
+    return next(p for p in sorted((root / split / "labels").glob("*.txt")) if p.read_text().strip())
+
+
+def _problems(root: Path, severity: str = "error"):
+    return [p for p in check_dataset(root, progress=False).problems if p.severity == severity]
+
+
+def test_synthetic_dataset_is_clean_and_canonical(synth_dataset):
+    report = check_dataset(synth_dataset, progress=False)
+    assert report.errors == []
+    assert "names: ['bp', 'gp', 'yp', 'pb', 'pg', 'py']" in (synth_dataset / "data.yaml").read_text()
+    dataset = load_dataset(synth_dataset)
+    assert {s.split for s in dataset.samples} == {"train", "valid", "test"}
+    assert len(dataset.split("train")) == round(0.7 * 24) and len(dataset.split("test")) == round(0.2 * 24)
+    annotations = json.loads((synth_dataset / "annotations.json").read_text())
+    for sample in dataset.samples:
+        truth = annotations["images"][sample.image.name]["landmarks"]
+        assert [t["cls"] for t in truth] == [i.cls for i in sample.instances]
+
+
+def _append_line(path: Path, line: str) -> int:
+    lines = path.read_text().splitlines() + [line]
+    path.write_text("\n".join(lines) + "\n")
+    return len(lines)
+
+
+@pytest.mark.parametrize("line, message", [
+    ("9 0.1 0.1 0.2 0.1 0.2 0.2", "class id 9 out of range"),
+    ("0 0.1 0.1 0.2 0.1 0.2", "odd number of coordinates"),
+    ("0 0.1 0.1 0.2 0.2", "bounding-box label"),
+    ("0 0.1 0.1 0.2 0.1 0.3 0.4 0.5 0.6 0.7 0.8 0.9 0.9 0.1 0.1 0.2 0.2 0.3", "odd number"),
+    ("0 0.1 0.1 0.2 0.2 0.1 0.1 0.2 0.2", "zero area"),
+    ("0 10 20 30 20 30 40", "outside [0, 1]"),
+    ("0 0.1 0.1", "only 1 point(s)"),
+    ("0 0.1 abc 0.2 0.1 0.2 0.2", "not a number"),
+])
+def test_bad_label_line_is_reported_with_file_and_line(dataset_copy, line, message):
+    label = _first_labelled(dataset_copy)
+    number = _append_line(label, line)
+    errors = _problems(dataset_copy)
+    assert any(p.path == label and p.line == number and message in p.message for p in errors), errors
+
+
+def test_slightly_outside_coordinates_are_a_warning_and_clipped(dataset_copy):
+    label = _first_labelled(dataset_copy)
+    number = _append_line(label, "0 -0.005 0.1 0.2 0.1 0.2 0.3")
+    warnings = _problems(dataset_copy, "warning")
+    assert any(p.path == label and p.line == number for p in warnings)
+    sample = next(s for s in load_dataset(dataset_copy).samples if s.label == label)
+    assert sample.instances[-1].polygon.min() == 0.0
+
+
+def test_label_without_image_and_image_without_label(dataset_copy):
+    label = _first_labelled(dataset_copy)
+    image = dataset_copy / "train" / "images" / f"{label.stem}.jpg"
+    image.unlink()
+    other = _first_labelled(dataset_copy, "test")
+    other.unlink()
+    errors = _problems(dataset_copy)
+    assert any(p.path == label and "label without an image" in p.message for p in errors)
+    notes = _problems(dataset_copy, "note")
+    assert any(p.path.stem == other.stem and "read as a negative" in p.message for p in notes)
+
+
+def test_corrupt_and_truncated_images(dataset_copy):
+    images = sorted((dataset_copy / "train" / "images").glob("*.jpg"))
+    images[0].write_bytes(b"not an image at all")
+    data = images[1].read_bytes()
+    images[1].write_bytes(data[: len(data) * 2 // 3])
+    report = check_dataset(dataset_copy, progress=False)
+    assert any(p.path == images[0] and "cannot be decoded" in p.message for p in report.errors)
+    assert any(p.path == images[1] and "truncated" in p.message for p in report.errors)
+
+
+def test_duplicate_stems_within_and_across_splits(dataset_copy):
+    train_image = sorted((dataset_copy / "train" / "images").glob("*.jpg"))[0]
+    shutil.copy(train_image, dataset_copy / "test" / "images" / train_image.name)
+    shutil.copy(train_image, train_image.with_suffix(".png"))
+    messages = [p.message for p in _problems(dataset_copy)]
+    assert any("leak between splits" in m for m in messages)
+    assert any("same file stem" in m for m in messages)
+
+
+def test_unknown_class_name_in_yaml(dataset_copy):
+    yaml_path = dataset_copy / "data.yaml"
+    yaml_path.write_text(yaml_path.read_text().replace("'bp'", "'ball'"))
+    errors = _problems(dataset_copy)
+    assert any(p.path == yaml_path and "'ball' names no landmark" in p.message for p in errors)
+
+
+def test_classes_are_mapped_by_name_not_index(synth_dataset, tmp_path):
+    """A dataset that lists the classes in another order (and spells them out) reads to the same instances."""
+    order = ["pink-yellow", "Blue over Pink", "g-p", "PB", "pink green", "yellow/pink"]
+    permuted = Path(shutil.copytree(synth_dataset, tmp_path / "permuted"))
+    new_index = {canonical_class(name): i for i, name in enumerate(order)}
+    for label in permuted.glob("*/labels/*.txt"):
+        lines = [l.split(" ", 1) for l in label.read_text().splitlines()]
+        label.write_text("".join(f"{new_index[CLASSES[int(c)]]} {rest}\n" for c, rest in lines))
+    (permuted / "data.yaml").write_text(f"train: ../train/images\nval: ../valid/images\ntest: ../test/images\nnc: 6\nnames: {order}\n")
+    original, reread = load_dataset(synth_dataset), load_dataset(permuted)
+    assert [[i.cls for i in s.instances] for s in original.samples] == [[i.cls for i in s.instances] for s in reread.samples]
+
+
+def _tree_hash(root: Path) -> str:
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*")):
+        if path.is_file():
+            digest.update(str(path.relative_to(root)).encode() + path.read_bytes())
+    return digest.hexdigest()
+
+
+def test_fix_writes_a_clean_copy_and_leaves_the_input(dataset_copy, tmp_path):
+    label = _first_labelled(dataset_copy)
+    _append_line(label, "9 0.1 0.1 0.2 0.1 0.2 0.2")
+    sorted((dataset_copy / "valid" / "images").glob("*.jpg"))[0].write_bytes(b"broken")
+    before = _tree_hash(dataset_copy)
+    assert main(["check", str(dataset_copy), "--fix", "--out", str(tmp_path / "clean")]) == 1
+    assert _tree_hash(dataset_copy) == before
+    assert check_dataset(tmp_path / "clean", progress=False).errors == []
+    with pytest.raises(ValueError, match="overlaps the input"):
+        write_fixed_copy(check_dataset(dataset_copy, progress=False), dataset_copy / "inside")
+
+
+def test_cli_refuses_fix_without_out(dataset_copy, capsys):
+    assert main(["check", str(dataset_copy), "--fix"]) == 2
+    assert "never written in place" in capsys.readouterr().err
+
+
+def test_require_clean_lists_problems(dataset_copy):
+    label = _first_labelled(dataset_copy)
+    _append_line(label, "0 0.1 0.1")
+    with pytest.raises(DatasetError, match=f"{label.name}:"):
+        load_dataset(dataset_copy).require_clean()
+
+
+def _to_coco(root: Path, out: Path, category_order: list[str]) -> None:
+    """Write a Roboflow-style COCO export of a YOLO dataset (pixel polygons, a supercategory at id 0)."""
+    import cv2
+
+    dataset = load_dataset(root)
+    for split in ("train", "valid", "test"):
+        folder = out / split
+        folder.mkdir(parents=True)
+        categories = [{"id": 0, "name": "poles", "supercategory": "none"}]
+        categories += [{"id": i + 1, "name": n, "supercategory": "poles"} for i, n in enumerate(category_order)]
+        coco = {"images": [], "annotations": [], "categories": categories}
+        for sample in dataset.split(split):
+            shutil.copy(sample.image, folder / sample.image.name)
+            h, w = cv2.imread(str(sample.image)).shape[:2]
+            image_id = len(coco["images"])
+            coco["images"].append({"id": image_id, "file_name": sample.image.name, "width": w, "height": h})
+            for instance in sample.instances:
+                coco["annotations"].append({"id": len(coco["annotations"]), "image_id": image_id, "iscrowd": 0,
+                                            "category_id": category_order.index(instance.cls) + 1,
+                                            "segmentation": [instance.pixels(w, h).reshape(-1).tolist()]})
+        (folder / "_annotations.coco.json").write_text(json.dumps(coco))
+
+
+def test_coco_import_round_trips(synth_dataset, tmp_path):
+    _to_coco(synth_dataset, tmp_path / "coco", list(reversed(CLASSES)))
+    assert main(["convert", str(tmp_path / "coco"), "--out", str(tmp_path / "yolo")]) == 0
+    original, converted = load_dataset(synth_dataset), load_dataset(tmp_path / "yolo")
+    pairs = {s.image.name: s for s in original.samples}
+    assert len(converted.samples) == len(original.samples)
+    for sample in converted.samples:
+        reference = pairs[sample.image.name]
+        assert sample.split == reference.split
+        assert [i.cls for i in sample.instances] == [i.cls for i in reference.instances]
+        for a, b in zip(sample.instances, reference.instances):
+            np.testing.assert_allclose(a.polygon, b.polygon, atol=1e-6)
+
+
+def test_coco_rle_is_refused(synth_dataset, tmp_path):
+    _to_coco(synth_dataset, tmp_path / "coco", list(CLASSES))
+    path = tmp_path / "coco" / "train" / "_annotations.coco.json"
+    coco = json.loads(path.read_text())
+    coco["annotations"][0]["segmentation"] = {"counts": "abc", "size": [240, 320]}
+    path.write_text(json.dumps(coco))
+    assert any("RLE" in p.message for p in load_dataset(tmp_path / "coco").errors)
+
+
+def test_write_dataset_refuses_to_overwrite(synth_dataset, tmp_path):
+    out = write_dataset(tmp_path / "out", load_dataset(synth_dataset))
+    with pytest.raises(FileExistsError, match="--force"):
+        write_dataset(out, load_dataset(synth_dataset))
+    assert write_dataset(out, load_dataset(synth_dataset), force=True) == out
+    assert not list(tmp_path.glob(".out.*"))
+
+
+def test_real_poles_read_clean(real_poles):
+    report = check_dataset(real_poles, progress=False)
+    assert report.errors == []
+    assert sum(len(s.instances) for s in report.dataset.samples) == 14
