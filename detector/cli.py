@@ -5,11 +5,10 @@ import argparse
 import sys
 from pathlib import Path
 
+from augment.config import OPERATIONS
 from detector.datasets.model import DatasetError
 
 NOT_BUILT = {
-    "augment": "augment a dataset offline (7 copies per training image, as the thesis did)",
-    "split": "re-split a dataset 70/20/10, stratified by class",
     "train": "train a YOLOv8 segmentation model on the CPU",
     "export": "export a trained model to ONNX (FP32 / INT8) and verify it",
     "calibrate": "fit the range power laws from calibration shots",
@@ -55,6 +54,32 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("data", type=Path)
     convert.add_argument("--out", type=Path, required=True)
     convert.add_argument("--force", action="store_true")
+
+    augment = sub.add_parser("augment", help="add N augmented copies of every training image (labels kept exact)")
+    augment.add_argument("--data", type=Path, required=True, help="input dataset (never written)")
+    augment.add_argument("--out", type=Path, required=True, help="output dataset folder")
+    augment.add_argument("--copies", type=int, default=7, help="copies per training image (thesis: 7)")
+    augment.add_argument("--seed", type=int, default=0)
+    augment.add_argument("--ops", help=f"comma-separated operations to draw from (default all: {','.join(OPERATIONS)})")
+    augment.add_argument("--config", type=Path, help="YAML with strength limits, e.g. `rotate_deg: 15`, `box_blur_px: 1.5`")
+    for name, default, text in (("rotate-deg", 15.0, "whole-image rotation limit"), ("shear-deg", 11.0, "shear limit"),
+                                ("saturation", 0.10, "saturation change limit (fraction)"),
+                                ("brightness", 0.20, "brightness change limit (fraction)"),
+                                ("box-rotate-deg", 5.0, "box rotation limit"),
+                                ("box-brightness", 0.15, "box brightness change limit (fraction)"),
+                                ("box-blur-px", 1.5, "box blur sigma limit (px)")):
+        augment.add_argument(f"--{name}", type=float, default=None, help=f"{text} (default {default})")
+    augment.add_argument("--preview", action="store_true", help="write augment_preview.png: originals beside copies")
+    augment.add_argument("--workers", type=int, default=None)
+    augment.add_argument("--force", action="store_true")
+
+    split = sub.add_parser("split", help="re-split a dataset, stratified so every class reaches every split")
+    split.add_argument("--data", type=Path, required=True)
+    split.add_argument("--out", type=Path, required=True)
+    split.add_argument("--ratios", type=float, nargs=3, default=(0.7, 0.2, 0.1), metavar=("TRAIN", "TEST", "VALID"),
+                       help="fractions for train, test and valid (thesis: 0.7 0.2 0.1)")
+    split.add_argument("--seed", type=int, default=0)
+    split.add_argument("--force", action="store_true")
 
     demo = sub.add_parser("demo", help="run the whole pipeline on a synthetic dataset")
     demo.add_argument("--out", type=Path, default=Path("runs/demo"))
@@ -111,6 +136,34 @@ def _convert(args: argparse.Namespace) -> int:
     return 0
 
 
+def _augment(args: argparse.Namespace) -> int:
+    from augment.config import AugmentConfig
+    from augment.run import augment_dataset
+
+    settings = {k: getattr(args, k) for k in ("rotate_deg", "shear_deg", "saturation", "brightness", "box_rotate_deg",
+                                              "box_brightness", "box_blur_px")}
+    if args.ops:
+        settings["ops"] = tuple(op.strip() for op in args.ops.split(",") if op.strip())
+    config = (AugmentConfig.from_yaml(args.config, **settings) if args.config
+              else AugmentConfig(**{k: v for k, v in settings.items() if v is not None}))
+    summary = augment_dataset(args.data, args.out, copies=args.copies, seed=args.seed, config=config,
+                              preview=args.preview, force=args.force, workers=args.workers)
+    print(f"train images: {summary['train_images_in']} -> {summary['train_images_out']}; instances in copies kept "
+          f"{summary['instances_kept']}, dropped {summary['instances_dropped']} (clipped away or too small)")
+    print("operations used: " + ", ".join(f"{k} {v}" for k, v in sorted(summary["operations"].items())))
+    if "preview" in summary:
+        print(f"preview: {summary['preview']}")
+    return 0
+
+
+def _split(args: argparse.Namespace) -> int:
+    from detector.datasets.split import split_dataset
+
+    counts = split_dataset(args.data, args.out, tuple(args.ratios), seed=args.seed, force=args.force)
+    print("images per split: " + ", ".join(f"{k} {v}" for k, v in counts.items()))
+    return 0
+
+
 def _demo(args: argparse.Namespace) -> int:
     """Until the full demo lands: render a dataset with a preview, then check it."""
     if _synth(argparse.Namespace(out=args.out / "data", images=args.images, seed=args.seed, size=(640, 480), hfov=56.3,
@@ -119,7 +172,7 @@ def _demo(args: argparse.Namespace) -> int:
     return _check(argparse.Namespace(data=args.out / "data", fix=False, out=None, notes=False, force=False))
 
 
-COMMANDS = {"synth": _synth, "check": _check, "convert": _convert, "demo": _demo}
+COMMANDS = {"synth": _synth, "check": _check, "convert": _convert, "augment": _augment, "split": _split, "demo": _demo}
 
 if __name__ == "__main__":
     sys.exit(main())

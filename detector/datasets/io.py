@@ -170,6 +170,12 @@ class DatasetWriter:
         self.counts[split] += 1
         return self.out / split / "images" / filename
 
+    def copy_sample(self, sample: Sample) -> None:
+        """Copy an image and its label file byte for byte (an unlabelled image gets an empty label file)."""
+        self.add(sample.split, sample.image.name, sample.image, [])
+        if sample.label is not None:
+            shutil.copyfile(sample.label, self.tmp / sample.split / "labels" / f"{sample.image.stem}.txt")
+
     def write_text(self, relative: str, text: str) -> None:
         """Add any other file (a report, annotations.json) at a path relative to the dataset root."""
         target = self.tmp / relative

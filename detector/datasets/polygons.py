@@ -44,7 +44,7 @@ def mask_to_polygon(mask: np.ndarray, epsilon_px: float = 0.5, min_area_px: floa
     contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     parts = []
     for contour in sorted(contours, key=cv2.contourArea, reverse=True):
-        if cv2.contourArea(contour) < min_area_px and parts:
+        if cv2.contourArea(contour) < min_area_px:  # specks and one-pixel-wide slivers have no polygon
             continue
         simplified = cv2.approxPolyDP(contour, epsilon_px, closed=True).reshape(-1, 2).astype(np.float64)
         if len(simplified) < 3:
@@ -58,3 +58,23 @@ def mask_iou(a: np.ndarray, b: np.ndarray) -> float:
     """Intersection over union of two boolean masks (1.0 when both are empty)."""
     union = np.logical_or(a, b).sum()
     return float(np.logical_and(a, b).sum() / union) if union else 1.0
+
+
+def clip_polygon(polygon: np.ndarray, x0: float, y0: float, x1: float, y1: float) -> np.ndarray:
+    """Sutherland-Hodgman clip of a polygon (N, 2) to the rectangle [x0, x1] x [y0, y1] (may return < 3 points)."""
+    points = np.asarray(polygon, np.float64)
+    for axis, bound, keep_below in ((0, x0, False), (0, x1, True), (1, y0, False), (1, y1, True)):
+        if len(points) == 0:
+            break
+        inside = points[:, axis] <= bound if keep_below else points[:, axis] >= bound
+        previous, previous_inside = points[-1], inside[-1]
+        kept = []
+        for point, point_inside in zip(points, inside):
+            if point_inside != previous_inside:
+                t = (bound - previous[axis]) / (point[axis] - previous[axis])
+                kept.append(previous + t * (point - previous))
+            if point_inside:
+                kept.append(point)
+            previous, previous_inside = point, point_inside
+        points = np.array(kept).reshape(-1, 2)
+    return points

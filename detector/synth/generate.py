@@ -2,8 +2,6 @@
 from __future__ import annotations
 
 import itertools
-import multiprocessing as mp
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -14,6 +12,7 @@ from tqdm import tqdm
 from detector.datasets.io import DatasetWriter
 from detector.datasets.model import Instance
 from detector.datasets.polygons import mask_to_polygon
+from detector.parallel import default_workers, ordered_map
 from detector.preview import contact_sheet, draw_instances
 from detector.synth.effects import apply_camera_effects, camera_effects
 from detector.synth.render import render_scene
@@ -116,42 +115,23 @@ def generate_dataset(out: str | Path, job: SynthJob, *, workers: int | None = No
     Calibration shots all go to the ``test`` split; other frames are split 70/20/10 (train/test/valid).
     """
     splits = ["test"] * job.images if job.calibration_shots else split_names(job.images, job.seed)
-    workers = max(1, min(workers or os.cpu_count() or 1, job.images))
+    workers = workers or default_workers(job.images)
     annotations = {"classes": list(CLASSES), "generator": _describe(job), "fields": ANNOTATION_FIELDS, "images": {}}
     tiles = []
     with DatasetWriter(out, force=force) as writer:
-        with _pool(workers) as pool:
-            results = (pool.imap(_render_star, ((job, i) for i in range(job.images)), chunksize=4) if pool
-                       else (render_one(job, i) for i in range(job.images)))
-            for sample in tqdm(results, total=job.images, desc="rendering", unit="img", disable=not progress):
-                name = f"{'calib' if job.calibration_shots else 'synth'}_{sample.index:05d}.jpg"
-                writer.add(splits[sample.index], name, sample.jpeg, sample.instances)
-                annotations["images"][name] = {"split": splits[sample.index], "width": job.width, "height": job.height,
-                                               "camera": sample.camera, "landmarks": sample.truth}
-                if preview and len(tiles) < PREVIEW_IMAGES:
-                    image = cv2.imdecode(np.frombuffer(sample.jpeg, np.uint8), cv2.IMREAD_COLOR)
-                    tiles.append((draw_instances(image, sample.instances), name))
+        results = ordered_map(_render_star, ((job, i) for i in range(job.images)), workers)
+        for sample in tqdm(results, total=job.images, desc="rendering", unit="img", disable=not progress):
+            name = f"{'calib' if job.calibration_shots else 'synth'}_{sample.index:05d}.jpg"
+            writer.add(splits[sample.index], name, sample.jpeg, sample.instances)
+            annotations["images"][name] = {"split": splits[sample.index], "width": job.width, "height": job.height,
+                                           "camera": sample.camera, "landmarks": sample.truth}
+            if preview and len(tiles) < PREVIEW_IMAGES:
+                image = cv2.imdecode(np.frombuffer(sample.jpeg, np.uint8), cv2.IMREAD_COLOR)
+                tiles.append((draw_instances(image, sample.instances), name))
         writer.write_json("annotations.json", annotations)
     if preview and tiles:
         print(f"preview: {contact_sheet(tiles, writer.out / 'preview.png')}")
     return writer.out
-
-
-class _pool:
-    """A process pool for ``workers`` > 1, or nothing (render in this process)."""
-
-    def __init__(self, workers: int):
-        self.workers = workers
-        self.pool = None
-
-    def __enter__(self):
-        if self.workers > 1:
-            self.pool = mp.get_context("spawn" if os.name == "nt" else "fork").Pool(self.workers)
-        return self.pool
-
-    def __exit__(self, *exc) -> None:
-        if self.pool is not None:
-            self.pool.terminate()
 
 
 def _describe(job: SynthJob) -> dict:

@@ -1,0 +1,99 @@
+"""``poles augment``: keep every training image and add N augmented copies; valid and test are copied unchanged."""
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+from tqdm import tqdm
+
+from augment.config import AugmentConfig
+from augment.pipeline import augment_copy, choose_operations
+from detector.datasets import load_dataset
+from detector.datasets.io import DatasetWriter
+from detector.datasets.model import Instance, Sample
+from detector.parallel import default_workers, ordered_map
+from detector.preview import contact_sheet, draw_instances
+
+PREVIEW_ORIGINALS = 4
+
+
+@dataclass(frozen=True)
+class _Task:
+    sample: Sample
+    index: int
+    copies: int
+    seed: int
+    config: AugmentConfig
+
+
+@dataclass
+class _Copy:
+    filename: str
+    jpeg: bytes
+    instances: list[Instance]
+    operations: list[str]
+    dropped: int
+
+
+def _augment_sample(task: _Task) -> list[_Copy]:
+    """All copies of one training image; depends only on (seed, image index, copy index)."""
+    image = cv2.imread(str(task.sample.image), cv2.IMREAD_COLOR)
+    copies = []
+    for k in range(task.copies):
+        rng = np.random.default_rng([task.seed, task.index, k])
+        operations = choose_operations(rng, task.config)
+        copy = augment_copy(image, task.sample.instances, operations, task.config, seed=int(rng.integers(2**31)))
+        ok, encoded = cv2.imencode(".jpg", copy.image, [cv2.IMWRITE_JPEG_QUALITY, 92])
+        copies.append(_Copy(f"{task.sample.stem}_aug{k + 1}.jpg", encoded.tobytes(), copy.instances, operations, copy.dropped))
+    return copies
+
+
+def augment_dataset(data: str | Path, out: str | Path, *, copies: int = 7, seed: int = 0,
+                    config: AugmentConfig = AugmentConfig(), preview: bool = False, force: bool = False,
+                    workers: int | None = None, progress: bool = True) -> dict:
+    """Write the augmented dataset to ``out`` and return a summary (also written as ``augment.json``)."""
+    if copies < 0:
+        raise ValueError(f"--copies must be 0 or more, not {copies}")
+    dataset = load_dataset(data).require_clean()
+    train = dataset.split("train")
+    if not train:
+        raise ValueError(f"{dataset.root}: the train split is empty: nothing to augment")
+    summary = {"copies": copies, "seed": seed, "config": config.as_dict(), "train_images_in": len(train),
+               "instances_into_copies": 0, "instances_kept": 0, "instances_dropped": 0, "operations": Counter()}
+    tiles = []
+    tasks = (_Task(sample, index, copies, seed, config) for index, sample in enumerate(train))
+    with DatasetWriter(out, force=force, protect=(dataset.root,)) as writer:
+        for sample in dataset.samples:
+            if sample.image is not None:
+                writer.copy_sample(sample)
+        results = ordered_map(_augment_sample, tasks, workers or default_workers(len(train)), chunksize=2)
+        for sample, made in tqdm(zip(train, results), total=len(train), desc="augmenting", unit="img", disable=not progress):
+            for copy in made:
+                writer.add("train", copy.filename, copy.jpeg, copy.instances)
+                summary["instances_into_copies"] += len(sample.instances)
+                summary["instances_kept"] += len(copy.instances)
+                summary["instances_dropped"] += copy.dropped
+                summary["operations"].update(copy.operations)
+            if preview and len(tiles) < PREVIEW_ORIGINALS * 4 and sample.instances:
+                tiles += _preview_row(sample, made)
+        for extra in ("annotations.json",):
+            if (dataset.root / extra).is_file():
+                writer.write_text(extra, (dataset.root / extra).read_text(encoding="utf-8"))
+        summary["train_images_out"] = writer.counts["train"]
+        summary["operations"] = dict(summary["operations"])
+        writer.write_json("augment.json", summary)
+    if preview and tiles:
+        summary["preview"] = str(contact_sheet(tiles, writer.out / "augment_preview.png"))
+    return summary
+
+
+def _preview_row(sample: Sample, made: list[_Copy]) -> list[tuple[np.ndarray, str]]:
+    original = cv2.imread(str(sample.image), cv2.IMREAD_COLOR)
+    row = [(draw_instances(original, sample.instances), f"original {sample.stem}")]
+    for copy in made[:3]:
+        image = cv2.imdecode(np.frombuffer(copy.jpeg, np.uint8), cv2.IMREAD_COLOR)
+        row.append((draw_instances(image, copy.instances), "+".join(copy.operations)))
+    return row + [(np.zeros_like(original), "")] * (4 - len(row))
