@@ -79,9 +79,9 @@ def augment_dataset(data: str | Path, out: str | Path, *, copies: int = 7, seed:
                 summary["operations"].update(copy.operations)
             if preview and len(tiles) < PREVIEW_ORIGINALS * 4 and sample.instances:
                 tiles += _preview_row(sample, made)
-        for extra in ("annotations.json",):
-            if (dataset.root / extra).is_file():
-                writer.write_text(extra, (dataset.root / extra).read_text(encoding="utf-8"))
+        truth = dataset.root / "annotations.json"  # per-image truth of the originals (copies have none)
+        if truth.is_file():
+            writer.write_text(truth.name, truth.read_text(encoding="utf-8"))
         summary["train_images_out"] = writer.counts["train"]
         summary["operations"] = dict(summary["operations"])
         writer.write_json("augment.json", summary)
