@@ -5,7 +5,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from augment.config import OPERATIONS
+from augment.config import OPERATIONS, AugmentConfig
 from detector.datasets.model import DatasetError
 
 NOT_BUILT = {
@@ -15,6 +15,13 @@ NOT_BUILT = {
     "evaluate": "precision, recall and mask IoU per image on held-out frames",
     "slam": "run an EKF SLAM back end on a simulated walk or a log",
 }
+
+
+#: Augmentation strength limits that have a flag of their own (AugmentConfig field -> help text).
+STRENGTH_FLAGS = {"rotate_deg": "whole-image rotation limit", "shear_deg": "shear limit",
+                  "saturation": "saturation change limit (fraction)", "brightness": "brightness change limit (fraction)",
+                  "box_rotate_deg": "box rotation limit", "box_brightness": "box brightness change limit (fraction)",
+                  "box_blur_px": "box blur sigma limit (px)"}
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -62,13 +69,10 @@ def build_parser() -> argparse.ArgumentParser:
     augment.add_argument("--seed", type=int, default=0)
     augment.add_argument("--ops", help=f"comma-separated operations to draw from (default all: {','.join(OPERATIONS)})")
     augment.add_argument("--config", type=Path, help="YAML with strength limits, e.g. `rotate_deg: 15`, `box_blur_px: 1.5`")
-    for name, default, text in (("rotate-deg", 15.0, "whole-image rotation limit"), ("shear-deg", 11.0, "shear limit"),
-                                ("saturation", 0.10, "saturation change limit (fraction)"),
-                                ("brightness", 0.20, "brightness change limit (fraction)"),
-                                ("box-rotate-deg", 5.0, "box rotation limit"),
-                                ("box-brightness", 0.15, "box brightness change limit (fraction)"),
-                                ("box-blur-px", 1.5, "box blur sigma limit (px)")):
-        augment.add_argument(f"--{name}", type=float, default=None, help=f"{text} (default {default})")
+    defaults = AugmentConfig()
+    for name, text in STRENGTH_FLAGS.items():
+        augment.add_argument(f"--{name.replace('_', '-')}", type=float, default=None,
+                             help=f"{text} (default {getattr(defaults, name)})")
     augment.add_argument("--preview", action="store_true", help="write augment_preview.png: originals beside copies")
     augment.add_argument("--workers", type=int, default=None)
     augment.add_argument("--force", action="store_true")
@@ -137,11 +141,9 @@ def _convert(args: argparse.Namespace) -> int:
 
 
 def _augment(args: argparse.Namespace) -> int:
-    from augment.config import AugmentConfig
     from augment.run import augment_dataset
 
-    settings = {k: getattr(args, k) for k in ("rotate_deg", "shear_deg", "saturation", "brightness", "box_rotate_deg",
-                                              "box_brightness", "box_blur_px")}
+    settings = {name: getattr(args, name) for name in STRENGTH_FLAGS}
     if args.ops:
         settings["ops"] = tuple(op.strip() for op in args.ops.split(",") if op.strip())
     config = (AugmentConfig.from_yaml(args.config, **settings) if args.config

@@ -6,7 +6,7 @@ pixel (u, v) measured from the top-left corner of the image, so the centre of pi
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -34,15 +34,6 @@ class PinholeCamera:
     @property
     def cy(self) -> float:
         return self.height / 2.0
-
-    def matrix(self) -> np.ndarray:
-        """The 3x3 intrinsic matrix K."""
-        f = self.focal_px
-        return np.array([[f, 0.0, self.cx], [0.0, f, self.cy], [0.0, 0.0, 1.0]])
-
-    def resized(self, width: int, height: int) -> "PinholeCamera":
-        """The same lens on a sensor read out at another resolution (same field of view)."""
-        return replace(self, width=width, height=height)
 
     def bearing_of_column(self, u: np.ndarray | float) -> np.ndarray | float:
         """Exact pinhole bearing (rad) of an image column for an upright camera: left of centre is positive."""

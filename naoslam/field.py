@@ -3,8 +3,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
 from naoslam.landmarks import CLASSES
 
 
@@ -32,8 +30,3 @@ GUTMANN_LANDMARKS: dict[str, tuple[float, float]] = dict(zip(
     CLASSES,
     [(-4.675, 3.175), (0.0, 3.175), (4.675, 3.175), (-4.675, -3.175), (0.0, -3.175), (4.675, -3.175)],
 ))
-
-
-def landmark_array(layout: dict[str, tuple[float, float]] = GUTMANN_LANDMARKS) -> np.ndarray:
-    """Landmark positions (6, 2) in canonical class order."""
-    return np.array([layout[c] for c in CLASSES], dtype=np.float64)

@@ -1,20 +1,10 @@
-"""The six coloured pole landmarks: class codes, band colours and the cylinder's dimensions."""
+"""The six coloured pole landmarks: class codes and the cylinder's dimensions."""
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 #: Canonical class order. A code names the two coloured bands top to bottom (``bp`` = blue over pink).
 CLASSES: tuple[str, ...] = ("bp", "gp", "yp", "pb", "pg", "py")
-
-#: Colour words for each band letter (used in messages and to read datasets that spell colours out).
-BAND_COLOURS: dict[str, str] = {"p": "pink", "b": "blue", "y": "yellow", "g": "green"}
-
-
-def bands_of(code: str) -> tuple[str, str]:
-    """Return the (top, bottom) band colour names of a class code, e.g. ``"bp" -> ("blue", "pink")``."""
-    if code not in CLASSES:
-        raise ValueError(f"unknown landmark class {code!r}; expected one of {', '.join(CLASSES)}")
-    return BAND_COLOURS[code[0]], BAND_COLOURS[code[1]]
 
 
 @dataclass(frozen=True)
@@ -44,8 +34,3 @@ class PoleGeometry:
     def divide_height(self) -> float:
         """Height above the ground of the line between the two coloured bands."""
         return self.base_height + self.band_height
-
-    @property
-    def upright_aspect(self) -> float:
-        """Width / height of an upright, fully visible pole seen side on."""
-        return self.diameter / self.height

@@ -54,11 +54,6 @@ def mask_to_polygon(mask: np.ndarray, epsilon_px: float = 0.5, min_area_px: floa
     return merge_polygons(parts) if parts else None
 
 
-def mask_iou(a: np.ndarray, b: np.ndarray) -> float:
-    """Intersection over union of two boolean masks (1.0 when both are empty)."""
-    union = np.logical_or(a, b).sum()
-    return float(np.logical_and(a, b).sum() / union) if union else 1.0
-
 
 def clip_polygon(polygon: np.ndarray, x0: float, y0: float, x1: float, y1: float) -> np.ndarray:
     """Sutherland-Hodgman clip of a polygon (N, 2) to the rectangle [x0, x1] x [y0, y1] (may return < 3 points)."""
