@@ -9,10 +9,6 @@ from augment.config import OPERATIONS, AugmentConfig
 from detector.datasets.model import DatasetError
 
 NOT_BUILT = {
-    "train": "train a YOLOv8 segmentation model on the CPU",
-    "export": "export a trained model to ONNX (FP32 / INT8) and verify it",
-    "calibrate": "fit the range power laws from calibration shots",
-    "evaluate": "precision, recall and mask IoU per image on held-out frames",
     "slam": "run an EKF SLAM back end on a simulated walk or a log",
 }
 
@@ -84,6 +80,57 @@ def build_parser() -> argparse.ArgumentParser:
                        help="fractions for train, test and valid (thesis: 0.7 0.2 0.1)")
     split.add_argument("--seed", type=int, default=0)
     split.add_argument("--force", action="store_true")
+
+    train = sub.add_parser("train", help="train a YOLOv8 segmentation model on the CPU (offline, every core)")
+    train.add_argument("--data", type=Path, required=True, help="dataset folder with data.yaml")
+    train.add_argument("--out", type=Path, required=True, help="run folder (weights/best.pt, results.csv, curves)")
+    train.add_argument("--model", default="yolov8s-seg", help="yolov8n-seg, yolov8s-seg (default) or yolov8m-seg")
+    train.add_argument("--weights", type=Path, help="local checkpoint to fine-tune from (default: train from scratch)")
+    train.add_argument("--epochs", type=int, default=100)
+    train.add_argument("--imgsz", type=int, default=640, help="training image size (default 640)")
+    train.add_argument("--batch", type=int, default=8)
+    train.add_argument("--patience", type=int, default=50, help="stop after this many epochs without improvement")
+    train.add_argument("--seed", type=int, default=0)
+    train.add_argument("--threads", type=int, help="torch threads (default: every core)")
+    train.add_argument("--workers", type=int, default=0, help="data-loader processes (default 0: best on 2 cores)")
+    train.add_argument("--no-cache", action="store_true", help="do not cache decoded images in RAM")
+    train.add_argument("--resume", action="store_true", help="continue the interrupted run in --out")
+
+    export = sub.add_parser("export", help="export to ONNX (FP32, optional INT8), verified against PyTorch")
+    export.add_argument("--weights", type=Path, required=True, help="trained checkpoint (best.pt)")
+    export.add_argument("--out", type=Path, required=True, help="ONNX file to write (INT8 goes beside it as *-int8.onnx)")
+    export.add_argument("--imgsz", type=int, nargs=2, default=(480, 640), metavar=("HEIGHT", "WIDTH"),
+                        help="network input (default 480 640: the Nao's frames without padding)")
+    export.add_argument("--data", type=Path, help="dataset whose valid/test frames verify the export "
+                                                  "(default: the one the model was trained on)")
+    export.add_argument("--int8", action="store_true", help="also write a static INT8 copy")
+    export.add_argument("--calib-data", type=Path, help="dataset whose training images calibrate INT8 (default --data)")
+    export.add_argument("--reduce-range", action="store_true", help="7-bit INT8 weights, for x86 CPUs without VNNI")
+    export.add_argument("--conf", type=float, default=0.25, help="confidence threshold used when verifying")
+    export.add_argument("--force", action="store_true", help="replace existing output files")
+
+    calib = sub.add_parser("calibrate", help="fit range = a * px^b from poles of known distance")
+    calib.add_argument("--data", type=Path, required=True,
+                       help="dataset whose annotations.json (or --truth CSV) gives each pole's true range")
+    calib.add_argument("--out", type=Path, required=True, help="calibration.json to write")
+    source = calib.add_mutually_exclusive_group()
+    source.add_argument("--model", type=Path, help="measure the masks this ONNX model finds")
+    source.add_argument("--from-labels", action="store_true", help="measure the labelled masks (default)")
+    calib.add_argument("--truth", type=Path, help="CSV image,class,range_m instead of annotations.json")
+    calib.add_argument("--plot", type=Path, help="write the fit plot (PNG)")
+    calib.add_argument("--embed", type=Path, help="store the calibration in this ONNX model's metadata")
+    calib.add_argument("--force", action="store_true")
+
+    evaluate = sub.add_parser("evaluate", help="precision, recall and mask IoU per image on held-out frames")
+    evaluate.add_argument("--model", action="append", required=True,
+                          help="a .pt checkpoint, an .onnx model or `colour-filter`; repeat to compare several")
+    evaluate.add_argument("--data", type=Path, required=True)
+    evaluate.add_argument("--split", default="test", help="split to evaluate (default test)")
+    evaluate.add_argument("--conf", type=float, default=0.5, help="confidence threshold for the counts (default 0.5)")
+    evaluate.add_argument("--calibration", type=Path, help="calibration.json for range errors "
+                                                           "(default: the one embedded in the ONNX model)")
+    evaluate.add_argument("--imgsz", type=int, default=640, help="inference size for .pt checkpoints")
+    evaluate.add_argument("--out", type=Path, required=True, help="folder for metrics.json, plots and FP/FN overlays")
 
     demo = sub.add_parser("demo", help="run the whole pipeline on a synthetic dataset")
     demo.add_argument("--out", type=Path, default=Path("runs/demo"))
@@ -166,6 +213,53 @@ def _split(args: argparse.Namespace) -> int:
     return 0
 
 
+def _train(args: argparse.Namespace) -> int:
+    from detector.training import TrainSettings, summarise_run, train_model
+
+    settings = TrainSettings(model=args.model, epochs=args.epochs, imgsz=args.imgsz, batch=args.batch,
+                             patience=args.patience, seed=args.seed, threads=args.threads, workers=args.workers,
+                             cache=not args.no_cache)
+    run = train_model(args.data, args.out, settings, weights=args.weights, resume=args.resume)
+    best = summarise_run(run)
+    print(f"best epoch {best['best_epoch']} of {best['epochs']} (validation): mask mAP50 {best['mAP50(M)']:.3f}, "
+          f"mAP50-95 {best['mAP50-95(M)']:.3f}; weights {run / 'weights' / 'best.pt'}; curves {run / 'training_curves.png'}")
+    return 0
+
+
+def _export(args: argparse.Namespace) -> int:
+    from export.run import ExportJob, print_report, run_export
+
+    job = ExportJob(args.weights, args.out, tuple(args.imgsz), args.data, args.int8, args.calib_data,
+                    args.reduce_range, args.conf, args.force)
+    print_report(run_export(job))
+    return 0
+
+
+def _calibrate(args: argparse.Namespace) -> int:
+    from calibration.run import print_calibration, run_calibration
+
+    result = run_calibration(args.data, args.out, args.model, args.truth, args.plot, args.embed, args.force)
+    print_calibration(result)
+    print(f"wrote {args.out}" + (f", {args.plot}" if args.plot else "") + (f"; embedded in {args.embed}" if args.embed else ""))
+    return 0
+
+
+def _evaluate(args: argparse.Namespace) -> int:
+    from calibration.run import load_calibration
+    from detector.evaluation.predictors import make_predictor
+    from detector.evaluation.run import evaluate, print_metrics
+
+    calibration = load_calibration(args.calibration) if args.calibration else None
+    rows = []
+    for model in args.model:
+        predictor = make_predictor(model, args.imgsz, calibration)
+        out = args.out / predictor.name if len(args.model) > 1 else args.out
+        rows.append(evaluate(predictor, args.data, out, args.split, args.conf))
+    print_metrics(rows)
+    print(f"wrote {args.out} (metrics.json, per_image.png, sweep.png, errors/)")
+    return 0
+
+
 def _demo(args: argparse.Namespace) -> int:
     """Until the full demo lands: render a dataset with a preview, then check it."""
     if _synth(argparse.Namespace(out=args.out / "data", images=args.images, seed=args.seed, size=(640, 480), hfov=56.3,
@@ -174,7 +268,9 @@ def _demo(args: argparse.Namespace) -> int:
     return _check(argparse.Namespace(data=args.out / "data", fix=False, out=None, notes=False, force=False))
 
 
-COMMANDS = {"synth": _synth, "check": _check, "convert": _convert, "augment": _augment, "split": _split, "demo": _demo}
+COMMANDS = {"synth": _synth, "check": _check, "convert": _convert, "augment": _augment, "split": _split,
+            "train": _train, "export": _export, "calibrate": _calibrate, "evaluate": _evaluate,
+            "demo": _demo}
 
 if __name__ == "__main__":
     sys.exit(main())

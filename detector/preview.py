@@ -7,6 +7,7 @@ import cv2
 import numpy as np
 
 from detector.datasets.model import Instance
+from naoslam.atomic import write_bytes
 from naoslam.landmarks import CLASSES
 
 #: One BGR outline colour per class, in canonical order.
@@ -42,10 +43,5 @@ def contact_sheet(tiles: list[tuple[np.ndarray, str]], path: str | Path, columns
     scaled = [cv2.copyMakeBorder(t, 0, tile_h - t.shape[0], 0, 0, cv2.BORDER_CONSTANT) for t in scaled]
     scaled += [blank] * (-len(scaled) % columns)
     rows = [np.hstack(scaled[i : i + columns]) for i in range(0, len(scaled), columns)]
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     ok, encoded = cv2.imencode(".png", np.vstack(rows))
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_bytes(encoded.tobytes())
-    tmp.replace(path)
-    return path
+    return write_bytes(path, encoded.tobytes())

@@ -1,0 +1,1 @@
+"""Range and bearing calibration: measuring poles of known distance and fitting the power laws."""

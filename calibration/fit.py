@@ -1,0 +1,123 @@
+"""Power-law fits ``range = a * px^b`` (least squares in log-log space) and the calibration they make."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from calibration.samples import SizeSample, as_arrays
+from naoslam.camera import NAO_HFOV_DEG, PinholeCamera
+from naoslam.landmarks import PoleGeometry
+from naoslam.measurement import PowerLaw, RangeCalibration
+
+#: Distance bins (m) of the per-distance report.
+RANGE_BINS = (0.0, 0.75, 1.25, 2.0, 3.0, 4.0, 6.0)
+
+
+@dataclass(frozen=True)
+class LawFit:
+    """A fitted law with its goodness of fit (R^2 in log space) and the thesis-style fit through per-range means."""
+
+    law: PowerLaw
+    r2: float
+    samples: int
+    per_distance: PowerLaw | None
+
+    def as_dict(self) -> dict:
+        out = {"a": self.law.a, "b": self.law.b, "relative_std": self.law.relative_std, "r2": self.r2,
+               "samples": self.samples}
+        if self.per_distance:
+            out["per_distance_mean_fit"] = {"a": self.per_distance.a, "b": self.per_distance.b}
+        return out
+
+
+def fit_power_law(px: np.ndarray, range_m: np.ndarray) -> tuple[PowerLaw, float]:
+    """Least squares of log(range) on log(px); returns the law (with residual std) and R^2."""
+    px, range_m = np.asarray(px, float), np.asarray(range_m, float)
+    keep = (px > 0) & (range_m > 0)
+    if keep.sum() < 2 or np.ptp(np.log(px[keep])) == 0:
+        raise ValueError("a power law needs at least two poles of different pixel size")
+    x, y = np.log(px[keep]), np.log(range_m[keep])
+    b, log_a = np.polyfit(x, y, 1)
+    residual = y - (log_a + b * x)
+    r2 = 1 - residual.var() / y.var() if y.var() > 0 else 1.0
+    std = float(np.sqrt(np.sum(residual ** 2) / max(len(x) - 2, 1)))
+    return PowerLaw(float(math.exp(log_a)), float(b), std), float(r2)
+
+
+def fit_law(px: np.ndarray, range_m: np.ndarray) -> LawFit:
+    """All-points fit, plus the thesis's fit through the mean pixel size at each distinct range."""
+    law, r2 = fit_power_law(px, range_m)
+    ranges = np.round(range_m, 3)
+    distinct = np.unique(ranges)
+    per_distance = None
+    if len(distinct) >= 2:
+        per_distance = fit_power_law(np.array([px[ranges == r].mean() for r in distinct]), distinct)[0]
+    return LawFit(law, r2, len(px), per_distance)
+
+
+def calibrate(samples: list[SizeSample], geometry: PoleGeometry = PoleGeometry(),
+              hfov_deg: float = NAO_HFOV_DEG) -> tuple[RangeCalibration, dict]:
+    """Fit the width and height laws (height only on whole poles), the colour law and the bearing noise."""
+    reference_width = samples[0].image_width
+    columns = as_arrays(samples, reference_width)
+    whole = ~columns["partial"]
+    if whole.sum() < 2:
+        whole = np.ones_like(whole)
+    width_fit = fit_law(columns["width"], columns["range"])
+    height_fit = fit_law(columns["height"][whole], columns["range"][whole])
+    upright_ratio = float(np.median(columns["width"][whole] / columns["height"][whole]))
+    report = {"samples": len(samples), "reference_width_px": reference_width, "width": width_fit.as_dict(),
+              "height": height_fit.as_dict(), "upright_ratio": upright_ratio}
+    colour = _colour_law(samples, geometry, report)
+    bearing_std = _bearing_std(samples, hfov_deg, report)
+    calibration = RangeCalibration(width_fit.law, height_fit.law, reference_width, upright_ratio,
+                                   bearing_std_rad=bearing_std, hfov_deg=hfov_deg, colour_law=colour)
+    report["errors_by_range"] = range_errors(samples, calibration)
+    return calibration, report
+
+
+def _colour_law(samples: list[SizeSample], geometry: PoleGeometry, report: dict) -> PowerLaw | None:
+    """Range from pixels per cm between the two band centres (the colour filter's law), where the truth has it."""
+    usable = [s for s in samples if s.band_distance_px]
+    if len(usable) < 2:
+        return None
+    spacing_cm = geometry.band_height * 100
+    scale = np.array([samples[0].image_width / s.image_width for s in usable])
+    per_cm = np.array([s.band_distance_px for s in usable]) * scale / spacing_cm
+    fit = fit_law(per_cm, np.array([s.range_m for s in usable]))
+    report["colour"] = fit.as_dict()
+    return fit.law
+
+
+def _bearing_std(samples: list[SizeSample], hfov_deg: float, report: dict) -> float:
+    """Standard deviation of the pinhole bearing of the mask centre against the true bearing (1 deg if unknown)."""
+    known = [s for s in samples if s.bearing_rad is not None and s.centre_column is not None]
+    if len(known) < 2:
+        return math.radians(1.0)
+    errors = []
+    for s in known:
+        camera = PinholeCamera(s.image_width, s.image_width * 3 // 4, hfov_deg)
+        errors.append(float(camera.bearing_of_column(s.centre_column)) - s.bearing_rad)
+    errors = np.array(errors)
+    report["bearing_error_deg"] = {"mean": float(np.degrees(errors.mean())),
+                                   "std": float(np.degrees(errors.std(ddof=1))),
+                                   "max_abs": float(np.degrees(np.abs(errors).max()))}
+    return float(max(np.sqrt(np.mean(errors ** 2)), math.radians(0.1)))
+
+
+def range_errors(samples: list[SizeSample], calibration: RangeCalibration) -> list[dict]:
+    """Mean absolute relative range error (%) per distance bin, for each way of choosing the range."""
+    rows = []
+    for low, high in zip(RANGE_BINS[:-1], RANGE_BINS[1:]):
+        chosen = [s for s in samples if low <= s.range_m < high]
+        if not chosen:
+            continue
+        row = {"range_m": f"{low:.2f}-{high:.2f}", "samples": len(chosen)}
+        for method in ("width", "height", "rule", "fused"):
+            errors = [abs(calibration.range_from_box(s.width_px, s.height_px, s.image_width, method)[0] - s.range_m)
+                      / s.range_m for s in chosen]
+            row[method] = 100 * float(np.mean(errors))
+        rows.append(row)
+    return rows

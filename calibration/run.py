@@ -1,0 +1,112 @@
+"""``poles calibrate``: measure, fit, report, plot, write calibration.json, optionally embed it in a model."""
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from calibration.fit import calibrate
+from calibration.samples import SizeSample, as_arrays, collect_samples
+from naoslam.atomic import atomic_path, write_json
+from naoslam.measurement import RangeCalibration
+
+#: The 2024 thesis's laws at 640x480, drawn for comparison.
+THESIS_WIDTH_LAW = (70.057, -1.109)
+THESIS_HEIGHT_LAW = (209.16, -0.965)
+
+
+def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv: Path | None = None,
+                    plot: Path | None = None, embed: Path | None = None, force: bool = False) -> dict:
+    """Fit from ``data`` and write ``out`` (calibration + report); returns what was written."""
+    if Path(out).exists() and not force:
+        raise FileExistsError(f"{out} exists - pick another --out or add --force")
+    samples = collect_samples(data, model, truth_csv)
+    calibration, report = calibrate(samples)
+    report["source"] = f"masks of {model}" if model else "label masks"
+    result = {"calibration": calibration.to_dict(), "report": report}
+    write_json(out, result)
+    if plot:
+        plot_fit(samples, calibration, plot)
+    if embed:
+        embed_calibration(embed, calibration)
+    return result
+
+
+def load_calibration(path: Path) -> RangeCalibration:
+    """Read calibration.json (as written by ``poles calibrate``)."""
+    data = json.loads(Path(path).read_text())
+    return RangeCalibration.from_dict(data.get("calibration", data))
+
+
+def embed_calibration(model: Path, calibration: RangeCalibration) -> Path:
+    """Store the calibration in the ONNX model's naoslam metadata (the weights are untouched)."""
+    from export.onnx_export import read_info, write_metadata
+
+    info = read_info(model)
+    return write_metadata(model, replace(info, extra={**info.extra, "calibration": calibration.to_dict()}), model)
+
+
+def plot_fit(samples: list[SizeSample], calibration: RangeCalibration, png: Path) -> Path:
+    """Range against width and height (log-log) with the fitted laws and the thesis's."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    columns = as_arrays(samples, calibration.reference_width_px)
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
+    for ax, key, law, thesis in ((axes[0], "width", calibration.width_law, THESIS_WIDTH_LAW),
+                                 (axes[1], "height", calibration.height_law, THESIS_HEIGHT_LAW)):
+        px = columns[key]
+        ax.scatter(px[~columns["partial"]], columns["range"][~columns["partial"]], s=12, label="whole pole")
+        if columns["partial"].any():
+            ax.scatter(px[columns["partial"]], columns["range"][columns["partial"]], s=12, marker="x",
+                       label="partly outside the image")
+        grid = np.geomspace(max(px.min() * 0.8, 1), px.max() * 1.25, 100)
+        ax.plot(grid, law(grid), label=f"fit {law.a:.4g} px^{law.b:.3f}")
+        if calibration.reference_width_px == 640:
+            ax.plot(grid, thesis[0] * grid ** thesis[1], linestyle="--", label=f"thesis {thesis[0]} px^{thesis[1]}")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel(f"rotated-box {key} (px at {calibration.reference_width_px} px image width)")
+        ax.set_ylabel("true range (m)")
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=8)
+    fig.suptitle("range calibration")
+    with atomic_path(png) as tmp:
+        fig.savefig(tmp, dpi=90, format="png")
+    plt.close(fig)
+    return Path(png)
+
+
+def print_calibration(result: dict) -> None:
+    """The laws and the per-distance errors as tables."""
+    from rich.console import Console
+    from rich.table import Table
+
+    report = result["report"]
+    laws = Table(title=f"range laws from {report['samples']} poles ({report['source']}), "
+                       f"pixels at {report['reference_width_px']} px width")
+    for column in ("law", "a", "b", "R^2", "relative std", "thesis-style fit (per-range means)"):
+        laws.add_column(column)
+    for key in ("width", "height", "colour"):
+        if key in report:
+            fit = report[key]
+            mean_fit = fit.get("per_distance_mean_fit")
+            laws.add_row(key if key != "colour" else "colour (px per cm)", f"{fit['a']:.4g}", f"{fit['b']:.4f}",
+                         f"{fit['r2']:.4f}", f"{100 * fit['relative_std']:.1f} %",
+                         f"{mean_fit['a']:.4g} * x^{mean_fit['b']:.4f}" if mean_fit else "-")
+    errors = Table(title="mean relative range error by true range")
+    for column in ("range (m)", "poles", "width", "height", "thesis rule", "fused"):
+        errors.add_column(column, justify="right")
+    for row in report["errors_by_range"]:
+        errors.add_row(row["range_m"], str(row["samples"]),
+                       *(f"{row[m]:.1f} %" for m in ("width", "height", "rule", "fused")))
+    console = Console()
+    console.print(laws)
+    console.print(errors)
+    console.print(f"upright width/height ratio {report['upright_ratio']:.3f}"
+                  + (f"; bearing error {report['bearing_error_deg']['mean']:+.2f} +- "
+                     f"{report['bearing_error_deg']['std']:.2f} deg" if "bearing_error_deg" in report else ""))

@@ -1,0 +1,69 @@
+"""Ground truth beyond the labels: true range, bearing and band geometry per landmark.
+
+Read from ``annotations.json`` (written by ``poles synth``; the real-poles set has the same ``images`` ->
+``landmarks`` layout), whose landmarks follow the label file's lines in order, or from a CSV
+``image,class,range_m`` with one row per landmark.
+"""
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+from detector.datasets.model import Dataset, DatasetError, Problem
+from detector.datasets.names import canonical_class
+
+#: Ground truth of one image: one dict per label line (None where nothing is known about that instance).
+ImageTruth = list[dict | None]
+
+
+def load_truth(dataset: Dataset, csv_path: Path | None = None) -> dict[str, ImageTruth]:
+    """Truth per image file name, aligned with each sample's instances; empty when the dataset has none."""
+    if csv_path is not None:
+        return _from_csv(dataset, Path(csv_path))
+    path = dataset.root / "annotations.json"
+    if not path.is_file():
+        return {}
+    images = json.loads(path.read_text()).get("images", {})
+    truth = {}
+    for sample in dataset.samples:
+        entry = images.get(sample.image.name)
+        if entry is None:
+            continue
+        landmarks = entry.get("landmarks", [])
+        if [lm["cls"] for lm in landmarks] != [inst.cls for inst in sample.instances]:
+            raise DatasetError([Problem("error", path, None,
+                                        f"landmarks of {sample.image.name} do not follow its label file's classes",
+                                        "regenerate annotations.json with the labels, or pass a CSV with --truth")])
+        truth[sample.image.name] = [dict(lm, image_width=entry.get("width")) for lm in landmarks]
+    return truth
+
+
+def _from_csv(dataset: Dataset, path: Path) -> dict[str, ImageTruth]:
+    """Rows ``image,class,range_m``: each row gives the range of that image's (only) instance of that class."""
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such truth CSV (columns image,class,range_m)")
+    by_image = {s.image.name: s for s in dataset.samples}
+    truth: dict[str, ImageTruth] = {}
+    with path.open(newline="") as handle:
+        reader = csv.DictReader(handle)
+        if not reader.fieldnames or not {"image", "class", "range_m"} <= set(reader.fieldnames):
+            raise ValueError(f"{path}:1: header must be image,class,range_m (got {reader.fieldnames})")
+        for line, row in enumerate(reader, start=2):
+            sample = by_image.get(Path(row["image"]).name)
+            cls = canonical_class(row["class"])
+            try:
+                range_m = float(row["range_m"])
+            except ValueError:
+                raise ValueError(f"{path}:{line}: range_m {row['range_m']!r} is not a number") from None
+            if cls is None:
+                raise ValueError(f"{path}:{line}: class {row['class']!r} names no landmark - use one of bp gp yp pb pg py")
+            if sample is None:
+                raise ValueError(f"{path}:{line}: image {row['image']!r} is not in {dataset.root}")
+            matches = [i for i, inst in enumerate(sample.instances) if inst.cls == cls]
+            if len(matches) != 1:
+                raise ValueError(f"{path}:{line}: {row['image']} has {len(matches)} labelled {cls!r} poles; "
+                                 "a CSV row needs exactly one")
+            entry = truth.setdefault(sample.image.name, [None] * len(sample.instances))
+            entry[matches[0]] = {"cls": cls, "range_m": range_m}
+    return truth

@@ -1,0 +1,120 @@
+"""Counting as the 2024 thesis did, per image: TP, FP, FN, and TN (no landmark and no detection).
+
+A detection is a true positive when its class matches a label's and their masks overlap with IoU >= 0.5
+(greedy by confidence, one detection per label). A colour-filter detection has no real mask: it is a true
+positive when its band-dividing point falls inside a same-class label (grown by 3 px).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from detector.evaluation.predictors import Prediction
+from detector.matching import greedy_match, mask_iou
+
+MATCH_IOU = 0.5
+#: IoU thresholds of the COCO-style mAP50-95.
+MAP_THRESHOLDS = np.linspace(0.5, 0.95, 10)
+POINT_TOLERANCE_PX = 3
+
+
+@dataclass
+class ImageEvaluation:
+    """One image's labels, predictions and their pairwise overlaps, from which counts at any threshold follow."""
+
+    name: str
+    truth_classes: list[str]
+    truth_masks: list[np.ndarray]
+    truth: list[dict | None]
+    prediction: Prediction
+    overlap: np.ndarray
+    same_class: np.ndarray
+    point_matching: bool
+
+    def kept(self, conf: float) -> np.ndarray:
+        return np.flatnonzero(self.prediction.scores >= conf)
+
+    def match(self, conf: float, iou: float = MATCH_IOU) -> list[tuple[int, int]]:
+        """(prediction, label) pairs among predictions scoring >= conf."""
+        kept = self.kept(conf)
+        pairs = greedy_match(self.overlap[kept], self.prediction.scores[kept], iou, self.same_class[kept])
+        return [(int(kept[p]), r) for p, r in pairs]
+
+    def counts(self, conf: float) -> dict[str, int]:
+        tp = len(self.match(conf))
+        kept = len(self.kept(conf))
+        labels = len(self.truth_classes)
+        return {"tp": tp, "fp": kept - tp, "fn": labels - tp, "tn": int(labels == 0 and kept == 0)}
+
+
+def evaluate_image(name: str, truth_classes: list[str], truth_masks: list[np.ndarray], truth: list[dict | None],
+                   prediction: Prediction) -> ImageEvaluation:
+    """Overlap (mask IoU, or point-in-label for the colour filter) between every prediction and label."""
+    same_class = np.array([[p == t for t in truth_classes] for p in prediction.classes], dtype=bool)
+    same_class = same_class.reshape(len(prediction.classes), len(truth_classes))
+    if prediction.points is not None:
+        kernel = np.ones((2 * POINT_TOLERANCE_PX + 1,) * 2, np.uint8)
+        grown = [cv2.dilate(m.astype(np.uint8), kernel) > 0 for m in truth_masks]
+        overlap = np.array([[_inside(point, g) for g in grown] for point in prediction.points], dtype=float)
+        overlap = overlap.reshape(len(prediction.points), len(truth_masks))
+    else:
+        overlap = mask_iou(prediction.masks, truth_masks)
+    return ImageEvaluation(name, truth_classes, truth_masks, truth, prediction, overlap, same_class, prediction.points is not None)
+
+
+def _inside(point: tuple[float, float], mask: np.ndarray) -> bool:
+    x, y = int(point[0]), int(point[1])
+    return 0 <= y < mask.shape[0] and 0 <= x < mask.shape[1] and bool(mask[y, x])
+
+
+def totals(images: list[ImageEvaluation], conf: float) -> dict[str, int]:
+    """Summed TP, FP, FN, TN over images."""
+    out = {"tp": 0, "fp": 0, "fn": 0, "tn": 0}
+    for image in images:
+        for key, value in image.counts(conf).items():
+            out[key] += value
+    return out
+
+
+def precision_recall(counts: dict[str, int]) -> tuple[float, float, float]:
+    """Precision, recall and F1 from counts (1.0 where nothing could be wrong)."""
+    tp, fp, fn = counts["tp"], counts["fp"], counts["fn"]
+    precision = tp / (tp + fp) if tp + fp else 1.0
+    recall = tp / (tp + fn) if tp + fn else 1.0
+    f1 = 2 * precision * recall / (precision + recall) if precision + recall else 0.0
+    return precision, recall, f1
+
+
+def confidence_sweep(images: list[ImageEvaluation], thresholds: np.ndarray | None = None) -> list[dict]:
+    """Precision, recall and F1 at each confidence threshold."""
+    thresholds = np.round(np.arange(0.05, 1.0, 0.05), 2) if thresholds is None else thresholds
+    rows = []
+    for t in thresholds:
+        p, r, f1 = precision_recall(totals(images, float(t)))
+        rows.append({"conf": float(t), "precision": p, "recall": r, "f1": f1})
+    return rows
+
+
+def map_scores(images: list[ImageEvaluation], classes: tuple[str, ...]) -> dict[str, float] | None:
+    """Ultralytics' mAP50 and mAP50-95 over mask IoU (None for the colour filter, which has no masks)."""
+    if not images or images[0].point_matching:
+        return None
+    from ultralytics.utils.metrics import ap_per_class
+
+    tp_rows, conf, pred_cls, target_cls = [], [], [], []
+    for image in images:
+        n = len(image.prediction.classes)
+        tp = np.zeros((n, len(MAP_THRESHOLDS)), dtype=bool)
+        for k, threshold in enumerate(MAP_THRESHOLDS):
+            for p, _ in image.match(0.0, float(threshold)):
+                tp[p, k] = True
+        tp_rows.append(tp)
+        conf.extend(image.prediction.scores.tolist())
+        pred_cls.extend(classes.index(c) for c in image.prediction.classes)
+        target_cls.extend(classes.index(c) for c in image.truth_classes)
+    if not target_cls:
+        return None
+    ap = ap_per_class(np.concatenate(tp_rows), np.array(conf), np.array(pred_cls), np.array(target_cls))[5]
+    return {"map50": float(ap[:, 0].mean()), "map50_95": float(ap.mean())}

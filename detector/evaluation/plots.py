@@ -1,0 +1,90 @@
+"""Pictures of an evaluation: counts per image (thesis figure 4.10), the confidence sweep, FP/FN overlays."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from detector.evaluation.counting import ImageEvaluation  # noqa: E402
+from naoslam.atomic import atomic_path, write_bytes  # noqa: E402
+
+COUNT_COLOURS = {"tp": "#2ca02c", "fp": "#d62728", "fn": "#ff7f0e", "tn": "#1f77b4"}
+#: BGR colours of the overlays: matched detections, false positives, missed labels.
+TP_BGR, FP_BGR, FN_BGR = (255, 160, 0), (0, 0, 255), (0, 220, 255)
+
+
+def _save(fig, png: Path) -> Path:
+    with atomic_path(png) as tmp:
+        fig.savefig(tmp, dpi=90, format="png")
+    plt.close(fig)
+    return Path(png)
+
+
+def plot_per_image(per_image: list[dict], png: Path, title: str) -> Path:
+    """Stacked bars of TP, FP, FN and TN for every image."""
+    fig, ax = plt.subplots(figsize=(max(6, 0.12 * len(per_image) + 2), 3.2), constrained_layout=True)
+    x = np.arange(len(per_image))
+    bottom = np.zeros(len(per_image))
+    for key, colour in COUNT_COLOURS.items():
+        values = np.array([row[key] for row in per_image])
+        ax.bar(x, values, bottom=bottom, color=colour, label=key.upper(), width=0.9)
+        bottom += values
+    ax.set_xlabel("image")
+    ax.set_ylabel("count")
+    ax.set_title(f"{title}: per-image counts")
+    ax.legend(ncol=4, fontsize=8)
+    return _save(fig, png)
+
+
+def plot_sweep(sweep: list[dict], png: Path, title: str) -> Path:
+    """Precision, recall and F1 against the confidence threshold."""
+    fig, ax = plt.subplots(figsize=(5, 3.2), constrained_layout=True)
+    conf = [row["conf"] for row in sweep]
+    for key in ("precision", "recall", "f1"):
+        ax.plot(conf, [row[key] for row in sweep], label=key)
+    best = max(sweep, key=lambda row: row["f1"])
+    ax.axvline(best["conf"], color="grey", linestyle=":", label=f"best F1 at {best['conf']:.2f}")
+    ax.set_xlabel("confidence threshold")
+    ax.set_ylim(0, 1.02)
+    ax.set_title(f"{title}: confidence sweep")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    return _save(fig, png)
+
+
+def _outline(image: np.ndarray, mask: np.ndarray, colour, text: str) -> None:
+    contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    cv2.drawContours(image, contours, -1, colour, 2)
+    if contours:
+        x, y, _, _ = cv2.boundingRect(np.concatenate(contours))
+        cv2.putText(image, text, (x, max(12, y - 4)), cv2.FONT_HERSHEY_SIMPLEX, 0.45, colour, 1, cv2.LINE_AA)
+
+
+def write_overlays(images: list[ImageEvaluation], frames: dict[str, Path], conf: float, folder: Path) -> int:
+    """One JPEG per image with a false positive or a false negative; returns how many were written."""
+    written = 0
+    for image in images:
+        counts = image.counts(conf)
+        if not counts["fp"] and not counts["fn"]:
+            continue
+        frame = cv2.imread(str(frames[image.name]))
+        pairs = image.match(conf)
+        matched_p, matched_r = {p for p, _ in pairs}, {r for _, r in pairs}
+        pred = image.prediction
+        for p in image.kept(conf):
+            colour = TP_BGR if p in matched_p else FP_BGR
+            _outline(frame, pred.masks[p], colour, f"{pred.classes[p]} {pred.scores[p]:.2f}")
+            if pred.points is not None:
+                cv2.drawMarker(frame, tuple(int(v) for v in pred.points[p]), colour, cv2.MARKER_CROSS, 12, 2)
+        for r, (cls, mask) in enumerate(zip(image.truth_classes, image.truth_masks)):
+            if r not in matched_r:
+                _outline(frame, mask, FN_BGR, f"missed {cls}")
+        ok, encoded = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, 85])
+        write_bytes(folder / image.name, encoded.tobytes())
+        written += 1
+    return written

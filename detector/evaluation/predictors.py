@@ -1,0 +1,109 @@
+"""The three kinds of front end ``poles evaluate`` compares, behind one interface: frame -> Prediction."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from naoslam.colour_filter import ColourFilter
+from naoslam.detector import LandmarkDetector, mask_centre_column, rotated_box_of_mask
+from naoslam.measurement import RangeCalibration
+
+#: Lowest confidence kept, so that the precision/recall sweep and mAP see every detection.
+SWEEP_CONF = 0.01
+
+
+@dataclass
+class Prediction:
+    """Detections in one frame, best first. ``points`` (colour filter) stand in for masks when matching."""
+
+    classes: list[str]
+    scores: np.ndarray
+    masks: list[np.ndarray]
+    centre_columns: list[float]
+    sizes: list[tuple[float, float] | None]
+    points: list[tuple[float, float]] | None = None
+    band_distances: list[float] | None = None
+
+
+class Predictor:
+    """A front end under evaluation."""
+
+    name: str = ""
+    calibration: RangeCalibration | None = None
+
+    def __call__(self, frame: np.ndarray) -> Prediction:
+        raise NotImplementedError
+
+
+class OnnxPredictor(Predictor):
+    """An exported model run by the naoslam front end (FP32 or INT8)."""
+
+    def __init__(self, path: Path):
+        self.detector = LandmarkDetector(path, conf=SWEEP_CONF)
+        self.name = Path(path).name
+        calibration = self.detector.info.extra.get("calibration")
+        self.calibration = RangeCalibration.from_dict(calibration) if calibration else None
+
+    def __call__(self, frame: np.ndarray) -> Prediction:
+        found = self.detector(frame)
+        return Prediction([d.name for d in found], np.array([d.confidence for d in found]),
+                          [d.full_mask(frame.shape) for d in found], [d.centre_column for d in found],
+                          [(d.rotated_box.width, d.rotated_box.height) if d.rotated_box else None for d in found])
+
+
+class TorchPredictor(Predictor):
+    """A trained checkpoint run by Ultralytics on PyTorch (full-resolution masks)."""
+
+    def __init__(self, path: Path, imgsz: int = 640):
+        from ultralytics import YOLO
+
+        self.model = YOLO(str(path), task="segment")
+        self.imgsz = imgsz
+        self.name = Path(path).name
+
+    def __call__(self, frame: np.ndarray) -> Prediction:
+        result = self.model.predict(frame, imgsz=self.imgsz, conf=SWEEP_CONF, retina_masks=True, device="cpu",
+                                    verbose=False)[0]
+        if result.masks is None:
+            return Prediction([], np.zeros(0), [], [], [])
+        masks = [m > 0.5 for m in result.masks.data.numpy()]
+        boxes = [rotated_box_of_mask(m) for m in masks]
+        return Prediction([self.model.names[int(c)] for c in result.boxes.cls], result.boxes.conf.numpy(), masks,
+                          [mask_centre_column(m) if m.any() else 0.0 for m in masks],
+                          [(b.width, b.height) if b else None for b in boxes])
+
+
+class ColourFilterPredictor(Predictor):
+    """The thesis's colour filter; every detection has confidence 1 and is located by its band-dividing point."""
+
+    name = "colour-filter"
+
+    def __init__(self, calibration: RangeCalibration | None = None):
+        self.filter = ColourFilter()
+        self.calibration = calibration
+
+    def __call__(self, frame: np.ndarray) -> Prediction:
+        found = self.filter(frame)
+        return Prediction([d.name for d in found], np.ones(len(found)), [d.mask for d in found],
+                          [d.centre_column for d in found], [None] * len(found),
+                          points=[d.divide_centre for d in found], band_distances=[d.band_distance_px for d in found])
+
+
+def make_predictor(model: str, imgsz: int = 640, calibration: RangeCalibration | None = None) -> Predictor:
+    """``colour-filter``, a ``.pt`` checkpoint or an ``.onnx`` model."""
+    if model == "colour-filter":
+        return ColourFilterPredictor(calibration)
+    path = Path(model)
+    if path.suffix == ".pt":
+        if not path.is_file():
+            raise FileNotFoundError(f"{path}: no such checkpoint")
+        predictor = TorchPredictor(path, imgsz)
+    elif path.suffix == ".onnx":
+        predictor = OnnxPredictor(path)
+    else:
+        raise ValueError(f"--model {model!r}: give a .pt checkpoint, an .onnx model or `colour-filter`")
+    if calibration is not None:
+        predictor.calibration = calibration
+    return predictor

@@ -1,0 +1,148 @@
+"""``poles evaluate``: run a front end over a held-out split, count, measure, and write the report."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import cv2
+import numpy as np
+from tqdm import tqdm
+
+from detector.datasets import load_dataset
+from detector.datasets.polygons import polygon_to_mask
+from detector.datasets.truth import load_truth
+from detector.evaluation.counting import (ImageEvaluation, confidence_sweep, evaluate_image, map_scores,
+                                          precision_recall, totals)
+from detector.evaluation.plots import write_overlays, plot_per_image, plot_sweep
+from detector.evaluation.predictors import Predictor
+from naoslam.atomic import write_json
+from naoslam.camera import PinholeCamera
+from naoslam.landmarks import CLASSES, PoleGeometry
+
+
+def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", conf: float = 0.5,
+             progress: bool = True) -> dict:
+    """Evaluate ``predictor`` on ``split`` of ``data``; writes ``out``/metrics.json, plots and overlays."""
+    dataset = load_dataset(data).require_clean()
+    samples = dataset.split(split)
+    if not samples:
+        raise ValueError(f"{data}: the {split!r} split has no images - pick another with --split")
+    truth = load_truth(dataset)
+    images, frames = [], {}
+    for sample in tqdm(samples, desc=f"evaluating {predictor.name}", unit="img", disable=not progress):
+        frame = cv2.imread(str(sample.image))
+        h, w = frame.shape[:2]
+        masks = [polygon_to_mask(inst.pixels(w, h), w, h) for inst in sample.instances]
+        entries = truth.get(sample.image.name) or [None] * len(sample.instances)
+        images.append(evaluate_image(sample.image.name, [i.cls for i in sample.instances], masks, entries,
+                                     predictor(frame)))
+        frames[sample.image.name] = sample.image
+    counts = totals(images, conf)
+    precision, recall, f1 = precision_recall(counts)
+    sweep = confidence_sweep(images)
+    best = max(sweep, key=lambda row: row["f1"])
+    metrics = {"model": predictor.name, "data": str(data), "split": split, "conf": conf, "images": len(images),
+               "precision": precision, "recall": recall, "f1": f1, **counts,
+               "mean_iou": _mean_tp_iou(images, conf), "best_f1_conf": best["conf"], "best_f1": best["f1"],
+               "sweep": sweep, "per_image": [{"image": i.name, **i.counts(conf)} for i in images]}
+    metrics.update(map_scores(images, CLASSES) or {})
+    metrics.update(_measurement_errors(images, conf, predictor))
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    plot_per_image(metrics["per_image"], out / "per_image.png", predictor.name)
+    plot_sweep(sweep, out / "sweep.png", predictor.name)
+    metrics["overlays"] = write_overlays(images, frames, conf, out / "errors")
+    write_json(out / "metrics.json", metrics)
+    return metrics
+
+
+def _mean_tp_iou(images: list[ImageEvaluation], conf: float) -> float | None:
+    """Mean mask IoU of true positives (None for the colour filter, which has no masks)."""
+    if images and images[0].point_matching:
+        return None
+    ious = [image.overlap[p, r] for image in images for p, r in image.match(conf)]
+    return float(np.mean(ious)) if ious else 0.0
+
+
+def _stats(values: list[float]) -> dict[str, float]:
+    a = np.abs(np.array(values))
+    return {"mean": float(a.mean()), "median": float(np.median(a)), "p90": float(np.percentile(a, 90)),
+            "count": len(values)}
+
+
+def _measurement_errors(images: list[ImageEvaluation], conf: float, predictor: Predictor) -> dict:
+    """Range (m), bearing (deg) and, for the colour filter, band-divide pixel errors of true positives."""
+    range_err, bearing_err, pixel_err = [], [], []
+    calibration = predictor.calibration
+    for image in images:
+        pred = image.prediction
+        for p, r in image.match(conf):
+            truth = image.truth[r] if r < len(image.truth) else None
+            if not truth:
+                continue
+            width = truth.get("image_width") or 640
+            if truth.get("bearing_rad") is not None:
+                camera = PinholeCamera(width, width * 3 // 4, calibration.hfov_deg if calibration else 56.3)
+                bearing_err.append(math.degrees(float(camera.bearing_of_column(pred.centre_columns[p]))
+                                                - truth["bearing_rad"]))
+            if truth.get("range_m") is not None and calibration is not None:
+                estimate = _range(pred, p, calibration, width)
+                if estimate is not None:
+                    range_err.append(estimate - truth["range_m"])
+            if pred.points is not None and truth.get("band_divide_centre_px"):
+                pixel_err.append(math.dist(pred.points[p], truth["band_divide_centre_px"]))
+    out = {}
+    if range_err:
+        out["range_error"] = _stats(range_err)
+    if bearing_err:
+        out["bearing_error"] = _stats(bearing_err)
+    if pixel_err:
+        out["divide_pixel_error"] = _stats(pixel_err)
+    return out
+
+
+def _range(pred, p: int, calibration, image_width: int) -> float | None:
+    if pred.band_distances is not None:
+        if calibration.colour_law is None:
+            return None
+        per_cm = pred.band_distances[p] * calibration.reference_width_px / image_width / (PoleGeometry().band_height * 100)
+        return float(calibration.colour_law(per_cm))
+    if pred.sizes[p] is None:
+        return None
+    return calibration.range_from_box(*pred.sizes[p], image_width)[0]
+
+
+def _localisation(m: dict) -> str:
+    if m.get("mean_iou") is not None:
+        return f"IoU {m['mean_iou']:.4f}"
+    return f"{m['divide_pixel_error']['mean']:.2f} px" if "divide_pixel_error" in m else "-"
+
+
+#: Rows of the comparison table: label and how to show it from metrics.json.
+TABLE_ROWS = {
+    "images": lambda m: str(m["images"]),
+    "TP / FP / FN / TN": lambda m: f"{m['tp']} / {m['fp']} / {m['fn']} / {m['tn']}",
+    "precision": lambda m: f"{100 * m['precision']:.1f} %",
+    "recall": lambda m: f"{100 * m['recall']:.1f} %",
+    "localisation": _localisation,
+    "mAP50 / mAP50-95": lambda m: f"{m['map50']:.3f} / {m['map50_95']:.3f}" if "map50" in m else "-",
+    "range error median / p90": lambda m: (f"{m['range_error']['median']:.3f} / {m['range_error']['p90']:.3f} m"
+                                           if "range_error" in m else "-"),
+    "bearing error median / p90": lambda m: (f"{m['bearing_error']['median']:.2f} / {m['bearing_error']['p90']:.2f} deg"
+                                             if "bearing_error" in m else "-"),
+    "best-F1 threshold (F1)": lambda m: f"{m['best_f1_conf']:.2f} ({m['best_f1']:.3f})",
+}
+
+
+def print_metrics(rows: list[dict]) -> None:
+    """Side-by-side table of several evaluations, like the thesis's table 4.2."""
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"held-out frames, conf {rows[0]['conf']}: TP = same class and mask IoU >= 0.5")
+    table.add_column("")
+    for m in rows:
+        table.add_column(m["model"], justify="right")
+    for label, cell in TABLE_ROWS.items():
+        table.add_row(label, *(cell(m) for m in rows))
+    Console().print(table)

@@ -1,0 +1,142 @@
+"""CPU training of YOLOv8 segmentation models with Ultralytics, offline, on every core.
+
+Ultralytics on a CPU uses ``cpu_count - 1`` torch threads (one thread on a two-core laptop) and no data-loader
+workers. ``train_model`` keeps Ultralytics' trainer and only lifts those two limits (see ``benchmarks/bench_train.py``
+for what that buys), caches images in RAM when they fit, and never downloads: models are built from their YAML or
+loaded from a local checkpoint, AMP checks and plots (which fetch a font) are off.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from ultralytics import YOLO
+from ultralytics.models.yolo.segment import SegmentationTrainer
+from ultralytics.utils import DEFAULT_CFG, torch_utils
+
+from detector.training_curves import best_epoch, plot_training_curves
+
+#: Segmentation models that can be built from their YAML without a download.
+MODELS = ("yolov8n-seg", "yolov8s-seg", "yolov8m-seg")
+
+
+@dataclass(frozen=True)
+class TrainSettings:
+    """What ``poles train`` passes to Ultralytics. Defaults are the thesis's (YOLOv8s, 640 px)."""
+
+    model: str = "yolov8s-seg"
+    epochs: int = 100
+    imgsz: int = 640
+    batch: int = 8
+    patience: int = 50
+    seed: int = 0
+    threads: int | None = None
+    workers: int = 0
+    cache: bool = True
+
+    def __post_init__(self) -> None:
+        if self.model not in MODELS:
+            raise ValueError(f"--model {self.model!r} is not one of {', '.join(MODELS)}")
+        for name in ("epochs", "imgsz", "batch"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"--{name} must be at least 1 (got {getattr(self, name)})")
+        if self.imgsz % 32:
+            raise ValueError(f"--imgsz {self.imgsz} is not a multiple of the model stride 32 (try {self.imgsz // 32 * 32 or 32})")
+
+
+def use_all_cores(threads: int | None = None) -> int:
+    """Make Ultralytics' ``select_device`` give torch ``threads`` (default: every core) instead of cpu_count - 1."""
+    threads = threads or os.cpu_count() or 1
+    torch_utils.NUM_THREADS = threads
+    torch_utils.torch.set_num_threads(threads)
+    return threads
+
+
+class CpuSegmentationTrainer(SegmentationTrainer):
+    """Ultralytics' segmentation trainer, except that the data-loader worker count asked for is kept on a CPU."""
+
+    def __init__(self, cfg=DEFAULT_CFG, overrides: dict | None = None, _callbacks=None):
+        workers = (overrides or {}).get("workers")
+        super().__init__(cfg=cfg, overrides=overrides, _callbacks=_callbacks)
+        if workers is not None:
+            self.args.workers = workers
+
+
+def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | None = None,
+                resume: bool = False) -> Path:
+    """Train (or resume) into the run folder ``out``; returns it. Writes ``training_curves.png`` beside results.csv."""
+    out = Path(out).resolve()
+    use_all_cores(settings.threads)
+    if resume:
+        last = out / "weights" / "last.pt"
+        YOLO(str(last)).train(resume=True, data=_resumable_data(last), workers=settings.workers,
+                              trainer=CpuSegmentationTrainer)
+    else:
+        data_yaml = _data_yaml(Path(data))
+        if out.exists() and any(out.iterdir()):
+            raise FileExistsError(f"{out} already holds a run - pick a new --out or add --resume to continue it")
+        if weights and not Path(weights).is_file():
+            raise FileNotFoundError(f"{weights}: no such checkpoint (nothing is downloaded: pass a local .pt)")
+        model = YOLO(str(weights) if weights else f"{settings.model}.yaml", task="segment")
+        options = asdict(settings)
+        for name in ("model", "threads"):
+            options.pop(name)
+        model.train(data=str(data_yaml.resolve()), project=str(out.parent), name=out.name, exist_ok=True, device="cpu",
+                    amp=False, plots=False, deterministic=True, trainer=CpuSegmentationTrainer,
+                    **options)
+    plot_training_curves(out / "results.csv", out / "training_curves.png")
+    return out
+
+
+def _data_yaml(data: Path) -> Path:
+    path = data / "data.yaml" if data.is_dir() else data
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no data.yaml - pass a dataset folder written by `poles synth`, "
+                                "`poles augment` or a Roboflow YOLOv8 export")
+    return path
+
+
+def _resumable_data(last: Path) -> str:
+    """The dataset of an interrupted run, or an error saying why it cannot be resumed."""
+    import torch
+
+    if not last.is_file():
+        raise FileNotFoundError(f"{last}: nothing to resume - start the run without --resume")
+    checkpoint = torch.load(str(last), map_location="cpu", weights_only=False)
+    if checkpoint.get("epoch", -1) < 0:
+        raise ValueError(f"{last}: this run finished all its epochs, nothing to resume - "
+                         "fine-tune with --weights to train further")
+    return checkpoint["train_args"]["data"]
+
+
+def recalibrate_batchnorm(weights: Path, images: list[Path], imgsz: tuple[int, int], out: Path) -> Path:
+    """Re-estimate a checkpoint's batch-norm running statistics on ``images`` (one pass, exact averages).
+
+    After very short training the running statistics still sit near their initial values (Ultralytics' momentum
+    is 0.03), so the network answers every frame alike; this is the "precise BN" fix. Writes a new checkpoint.
+    """
+    import cv2
+    import numpy as np
+    import torch
+
+    checkpoint = torch.load(str(weights), map_location="cpu", weights_only=False)
+    model = (checkpoint.get("ema") or checkpoint["model"]).float()
+    frames = [cv2.resize(cv2.imread(str(p)), imgsz[::-1])[:, :, ::-1] for p in images]
+    batch = torch.from_numpy(np.stack(frames).transpose(0, 3, 1, 2).copy()).float() / 255
+    for module in model.modules():
+        if isinstance(module, torch.nn.BatchNorm2d):
+            module.reset_running_stats()
+            module.momentum = None
+    model.train()
+    with torch.no_grad():
+        model(batch)
+    model.eval()
+    checkpoint.update(model=model.half(), ema=None)
+    torch.save(checkpoint, str(out))
+    return Path(out)
+
+
+def summarise_run(run: Path) -> dict:
+    """Best epoch (chosen on the validation set) and its metrics, from the run's results.csv."""
+    return best_epoch(Path(run) / "results.csv")

@@ -1,0 +1,1 @@
+"""ONNX export of trained checkpoints, verification against PyTorch, and INT8 quantisation."""

@@ -1,0 +1,74 @@
+"""Export a trained checkpoint to ONNX with Ultralytics, then stamp the naoslam metadata entry.
+
+The checkpoint is copied to a scratch folder first: Ultralytics writes its export beside the weights, and a user's
+files are never touched. The final model is moved into place atomically.
+"""
+from __future__ import annotations
+
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import onnx
+
+from naoslam.atomic import atomic_path
+from naoslam.model_info import METADATA_KEY, ModelInfo
+
+#: Network input (height, width) for the Nao's 640x480 frames: no letterbox padding.
+NAO_INPUT_HW = (480, 640)
+
+
+def refuse_overwrite(out: Path, force: bool) -> None:
+    """Raise unless ``out`` is free or ``force`` is set."""
+    if Path(out).exists() and not force:
+        raise FileExistsError(f"{out} exists - pick another --out or add --force to replace it")
+
+
+def export_onnx(weights: Path, out: Path, input_hw: tuple[int, int] = NAO_INPUT_HW, force: bool = False,
+                extra: dict[str, Any] | None = None) -> Path:
+    """Export ``weights`` (an Ultralytics segmentation .pt) to ONNX at a fixed input size; returns ``out``."""
+    from ultralytics import YOLO
+
+    weights, out = Path(weights), Path(out)
+    if not weights.is_file():
+        raise FileNotFoundError(f"{weights}: no such checkpoint - train one with `poles train`")
+    refuse_overwrite(out, force)
+    if any(side % 32 for side in input_hw):
+        raise ValueError(f"--imgsz {input_hw[0]} {input_hw[1]}: both sides must be multiples of the stride 32")
+    with tempfile.TemporaryDirectory(prefix="poles-export-") as scratch:
+        copy = Path(scratch) / weights.name
+        shutil.copyfile(weights, copy)
+        model = YOLO(str(copy))
+        if model.task != "segment":
+            raise ValueError(f"{weights}: a {model.task} model, not a segmentation model - train a *-seg model")
+        exported = Path(model.export(format="onnx", imgsz=list(input_hw), simplify=True, dynamic=False,
+                                     nms=False, device="cpu", verbose=False))
+        names = model.names
+        info = ModelInfo(tuple(names[i] for i in sorted(names)), tuple(input_hw), int(max(model.model.stride)),
+                         _model_name(model), dict(extra or {}))
+        write_metadata(exported, info, out)
+    return out
+
+
+def _model_name(model) -> str:
+    yaml_file = Path(str(getattr(model.model, "yaml", {}).get("yaml_file", "")))
+    return yaml_file.stem or "yolov8-seg"
+
+
+def read_info(path: Path) -> ModelInfo:
+    """The ModelInfo stored in an ONNX file."""
+    proto = onnx.load(str(path), load_external_data=False)
+    return ModelInfo.from_metadata({p.key: p.value for p in proto.metadata_props}, path)
+
+
+def write_metadata(source: Path, info: ModelInfo, out: Path) -> Path:
+    """Copy ONNX ``source`` to ``out`` (atomically) with the naoslam entry set to ``info``."""
+    proto = onnx.load(str(source))
+    kept = [p for p in proto.metadata_props if p.key != METADATA_KEY]
+    del proto.metadata_props[:]
+    proto.metadata_props.extend(kept)
+    proto.metadata_props.add(key=METADATA_KEY, value=info.to_json())
+    with atomic_path(out) as tmp:
+        onnx.save(proto, str(tmp))
+    return Path(out)

@@ -1,0 +1,146 @@
+"""``poles export``: ONNX export, verification against PyTorch, optional INT8 copy, and a report."""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from detector.datasets import load_dataset
+from export.onnx_export import NAO_INPUT_HW, export_onnx, refuse_overwrite
+from export.quantize import quantize_int8
+from export.verify import (FP32_TOLERANCE, INT8_TOLERANCE, compare, frontend_predict, median_latency_ms,
+                           ultralytics_predict)
+from naoslam.atomic import write_json
+
+#: Frames used to verify an export, and images used to calibrate INT8.
+VERIFY_FRAMES = 16
+CALIBRATION_IMAGES = 64
+
+
+class ExportMismatch(ValueError):
+    """The exported model does not give the answers the checkpoint gives."""
+
+
+@dataclass(frozen=True)
+class ExportJob:
+    weights: Path
+    out: Path
+    input_hw: tuple[int, int] = NAO_INPUT_HW
+    data: Path | None = None
+    int8: bool = False
+    calib_data: Path | None = None
+    reduce_range: bool = False
+    conf: float = 0.25
+    force: bool = False
+
+    @property
+    def int8_path(self) -> Path:
+        return self.out.with_name(f"{self.out.stem}-int8.onnx")
+
+    @property
+    def report_path(self) -> Path:
+        return self.out.with_suffix(".export.json")
+
+
+def dataset_images(data: Path, splits: tuple[str, ...], limit: int) -> list[Path]:
+    """Up to ``limit`` image paths from the given splits, spread evenly over them in file order."""
+    samples = [s for s in load_dataset(data).samples if s.split in splits]
+    if not samples:
+        raise ValueError(f"{data}: no images in the {'/'.join(splits)} split(s)")
+    picks = np.linspace(0, len(samples) - 1, min(limit, len(samples))).round().astype(int)
+    return [samples[i].image for i in sorted(set(picks))]
+
+
+def training_dataset(weights: Path) -> Path:
+    """The dataset folder a checkpoint was trained on (from its train_args), for when --data is not given."""
+    import torch
+
+    checkpoint = torch.load(str(weights), map_location="cpu", weights_only=False)
+    data = (checkpoint.get("train_args") or {}).get("data")
+    if not data or not Path(data).exists():
+        raise FileNotFoundError(f"{weights}: the dataset it was trained on ({data}) is not here - pass --data DATA")
+    return Path(data).parent if Path(data).is_file() else Path(data)
+
+
+def read_frames(paths: list[Path]) -> list[np.ndarray]:
+    frames = [cv2.imread(str(p)) for p in paths]
+    bad = [str(p) for p, f in zip(paths, frames) if f is None]
+    if bad:
+        raise ValueError(f"{bad[0]}: cannot be decoded as an image - run `poles check` on the dataset")
+    return frames
+
+
+def run_export(job: ExportJob) -> dict:
+    """Export, verify, optionally quantise; returns the report (also written to ``job.report_path``)."""
+    refuse_overwrite(job.out, job.force)
+    if job.int8:
+        refuse_overwrite(job.int8_path, job.force)
+    data = job.data or training_dataset(job.weights)
+    frames = read_frames(dataset_images(data, ("valid", "test"), VERIFY_FRAMES))
+    unverified = job.out.with_name(f".{job.out.name}.unverified")
+    try:
+        export_onnx(job.weights, unverified, job.input_hw, force=True)
+        reference = ultralytics_predict(job.weights, frames, job.input_hw, job.conf)
+        fp32 = frontend_predict(unverified, frames, job.conf)
+        agreement = compare(reference, fp32, job.conf, FP32_TOLERANCE.margin)
+        report = {"weights": str(job.weights), "onnx": str(job.out), "input_hw": list(job.input_hw),
+                  "verify_frames": len(frames), "conf": job.conf,
+                  "fp32_vs_pytorch": agreement.as_dict(), "fp32_problems": agreement.problems(FP32_TOLERANCE)}
+        if report["fp32_problems"]:
+            raise ExportMismatch(f"{job.weights}: the ONNX export disagrees with PyTorch on {len(frames)} frames: "
+                                 + "; ".join(report["fp32_problems"]) + " - nothing was written")
+        os.replace(unverified, job.out)
+    finally:
+        unverified.unlink(missing_ok=True)
+    models = {"fp32": job.out}
+    if job.int8:
+        calibration = dataset_images(job.calib_data or data, ("train",), CALIBRATION_IMAGES)
+        quantize_int8(job.out, job.int8_path, calibration, reduce_range=job.reduce_range)
+        int8 = compare(fp32, frontend_predict(job.int8_path, frames, job.conf), job.conf, INT8_TOLERANCE.margin)
+        report.update(int8=str(job.int8_path), calibration_images=len(calibration), int8_vs_fp32=int8.as_dict(),
+                      int8_problems=int8.problems(INT8_TOLERANCE))
+        models["int8"] = job.int8_path
+    report["latency_ms"] = median_latency_ms(models, frames[:8])
+    report["recommended"] = _recommend(report)
+    write_json(job.report_path, report)
+    return report
+
+
+def _recommend(report: dict) -> str:
+    latency = report["latency_ms"]
+    if "int8" not in latency or report["int8_problems"]:
+        return "fp32"
+    return "int8" if latency["int8"] < 0.9 * latency["fp32"] else "fp32"
+
+
+def print_report(report: dict) -> None:
+    """The agreement and speed figures as a table, one column per comparison."""
+    from rich.console import Console
+    from rich.table import Table
+
+    comparisons = [(label, report[key], report[problems]) for key, problems, label in (
+        ("fp32_vs_pytorch", "fp32_problems", "ONNX FP32 vs PyTorch"),
+        ("int8_vs_fp32", "int8_problems", "ONNX INT8 vs FP32")) if key in report]
+    table = Table(title=f"export at {report['input_hw'][1]}x{report['input_hw'][0]}: "
+                        f"{report['verify_frames']} frames, conf {report['conf']}")
+    table.add_column("")
+    for label, _, _ in comparisons:
+        table.add_column(label, justify="right")
+    rows = {"detections (ref / new)": lambda a: f"{a['reference']} / {a['candidate']}",
+            "matched": lambda a: str(a["matched"]),
+            "confident unmatched": lambda a: str(a["unmatched_confident"]),
+            "class changes": lambda a: str(a["class_mismatches"]),
+            "box IoU min / mean": lambda a: f"{a['box_iou_min']:.4f} / {a['box_iou_mean']:.4f}",
+            "mask IoU min / mean": lambda a: f"{a['mask_iou_min']:.4f} / {a['mask_iou_mean']:.4f}",
+            "max score difference": lambda a: f"{a['score_diff_max']:.4f}"}
+    for name, cell in rows.items():
+        table.add_row(name, *(cell(a) for _, a, _ in comparisons))
+    table.add_row("verdict", *("; ".join(problems) or "agrees" for _, _, problems in comparisons))
+    console = Console()
+    console.print(table)
+    latency = ", ".join(f"{k} {v:.1f} ms" for k, v in report["latency_ms"].items())
+    console.print(f"front end per frame: {latency}; use {report['recommended'].upper()}; wrote {report['onnx']}"
+                  + (f" and {report['int8']}" if "int8" in report else ""))

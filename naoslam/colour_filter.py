@@ -1,0 +1,165 @@
+"""The colour-filter front end of the 2024 thesis (section 3.3.1), the baseline the detector must beat.
+
+HSV ranges for pink, blue, yellow, green and white are turned once into a lookup table indexed by the quantised
+BGR value (Luijten's trick), so a frame is classified with one table lookup and no colour conversion. Then, for
+each pink segment: look from its centre straight down and up at distance d = 1.2 x its longest half-extent, then at
+growing angles (2, 4, ... 60 deg) either side, for blue, yellow or green; then below the lower of the two bands
+look for white. A pink + colour + white chain is a landmark. Beyond the thesis, the second band and the white are
+taken only inside the pink band's footprint moved one band length that way, so the green carpet or a white field
+line behind the pole is not mistaken for part of it.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+#: OpenCV HSV ranges (H 0..179): (hue ranges, minimum saturation, maximum saturation, minimum value).
+HSV_RANGES: dict[str, tuple[tuple[tuple[int, int], ...], int, int, int]] = {
+    "p": (((145, 179), (0, 4)), 90, 255, 70),
+    "b": (((88, 118),), 90, 255, 60),
+    "y": (((18, 38),), 90, 255, 80),
+    "g": (((45, 90),), 80, 255, 50),
+    "w": (((0, 179),), 0, 60, 70),
+}
+BITS = {name: 1 << i for i, name in enumerate(HSV_RANGES)}
+SECOND_COLOURS = ("b", "y", "g")
+#: Bits kept per BGR channel in the lookup table (6: 64^3 entries, 256 KiB).
+LUT_BITS = 6
+
+
+def build_lookup(ranges=HSV_RANGES, bits: int = LUT_BITS) -> np.ndarray:
+    """Colour bitmask for every quantised BGR value, evaluated at the centre of its bin."""
+    levels = 1 << bits
+    step = 256 // levels
+    centres = (np.arange(levels) * step + step // 2).astype(np.uint8)
+    b, g, r = np.meshgrid(centres, centres, centres, indexing="ij")
+    bgr = np.stack([b, g, r], axis=-1).reshape(-1, 1, 3)
+    hsv = cv2.cvtColor(bgr, cv2.COLOR_BGR2HSV).reshape(-1, 3).astype(int)
+    lut = np.zeros(len(hsv), np.uint8)
+    for name, (hues, s_min, s_max, v_min) in ranges.items():
+        hue_ok = np.zeros(len(hsv), bool)
+        for low, high in hues:
+            hue_ok |= (hsv[:, 0] >= low) & (hsv[:, 0] <= high)
+        ok = hue_ok & (hsv[:, 1] >= s_min) & (hsv[:, 1] <= s_max) & (hsv[:, 2] >= v_min)
+        lut[ok] |= BITS[name]
+    return lut
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A connected region of pink: its pixels, centre and vertical extent."""
+
+    mask: np.ndarray
+    cx: float
+    cy: float
+    top: int
+    bottom: int
+
+
+@dataclass(frozen=True)
+class ColourDetection:
+    """A landmark found by colour: class, the two band centres, the band-dividing point and the band mask."""
+
+    name: str
+    upper: tuple[float, float]
+    lower: tuple[float, float]
+    mask: np.ndarray
+    confidence: float = 1.0
+
+    @property
+    def divide_centre(self) -> tuple[float, float]:
+        """Centre of the line between the two bands (midpoint of the band centres)."""
+        return ((self.upper[0] + self.lower[0]) / 2, (self.upper[1] + self.lower[1]) / 2)
+
+    @property
+    def band_distance_px(self) -> float:
+        """Pixel length between the two band centres: the colour filter's range measure."""
+        return math.dist(self.upper, self.lower)
+
+    @property
+    def centre_column(self) -> float:
+        return self.divide_centre[0]
+
+
+class ColourFilter:
+    """Finds pink + (blue | yellow | green) + white chains in BGR frames."""
+
+    def __init__(self, min_area_px: int = 12, max_angle_deg: int = 60, angle_step_deg: int = 2):
+        self.lut = build_lookup()
+        self.min_area_px = min_area_px
+        self.angles = [0] + [a for step in range(angle_step_deg, max_angle_deg + 1, angle_step_deg) for a in (step, -step)]
+        self._shift = 8 - LUT_BITS
+
+    def classify(self, frame: np.ndarray) -> np.ndarray:
+        """Per-pixel colour bitmask (see ``BITS``) by table lookup."""
+        q = (frame >> self._shift).astype(np.int32)
+        return self.lut[(q[..., 0] << (2 * LUT_BITS)) | (q[..., 1] << LUT_BITS) | q[..., 2]]
+
+    def __call__(self, frame: np.ndarray) -> list[ColourDetection]:
+        if frame is None or frame.ndim != 3 or frame.shape[2] != 3 or frame.size == 0:
+            raise ValueError("the colour filter needs an HxWx3 BGR uint8 frame")
+        colours = self.classify(frame)
+        masks = {name: (colours & bit) > 0 for name, bit in BITS.items()}
+        found = []
+        for pink in self._segments(masks["p"]):
+            second = self._second_band(pink, masks)
+            if second is None:
+                continue
+            name, band, step = second
+            lower = band if step[1] > 0 else pink.mask
+            if not self._white_below(lower, step, masks["w"]):
+                continue
+            upper_mask, lower_mask = (pink.mask, band) if step[1] > 0 else (band, pink.mask)
+            found.append(ColourDetection("p" + name if step[1] > 0 else name + "p", _centre(upper_mask),
+                                         _centre(lower_mask), upper_mask | lower_mask))
+        return found
+
+    def _segments(self, mask: np.ndarray) -> list[Segment]:
+        count, labels, stats, centroids = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+        return [Segment(labels == i, float(centroids[i][0]), float(centroids[i][1]), int(stats[i, 1]),
+                        int(stats[i, 1] + stats[i, 3] - 1)) for i in range(1, count)
+                if stats[i, cv2.CC_STAT_AREA] >= self.min_area_px]
+
+    def _probe(self, cx: float, cy: float, d: float, directions: tuple[int, ...], shape: tuple[int, int]):
+        """Points at distance d from (cx, cy): down (+1) and/or up (-1), at growing angles either side."""
+        for angle in self.angles:
+            dx, dy = d * math.sin(math.radians(angle)), d * math.cos(math.radians(angle))
+            for direction in directions:
+                x, y = int(round(cx + dx)), int(round(cy + direction * dy))
+                if 0 <= x < shape[1] and 0 <= y < shape[0]:
+                    yield x, y, (dx, direction * dy)
+
+    def _second_band(self, pink: Segment, masks: dict[str, np.ndarray]):
+        """The thesis's probe search from the pink centre, then the band itself: pixels of the colour found in the
+        pink band's own footprint moved one band length that way (a band is as large as the pink one, so the
+        green carpet behind a green band is not taken for it)."""
+        d = 1.2 * max(pink.cy - pink.top, pink.bottom - pink.cy, 1.0)
+        for x, y, step in self._probe(pink.cx, pink.cy, d, (1, -1), pink.mask.shape):
+            for name in SECOND_COLOURS:
+                if masks[name][y, x]:
+                    band = _shifted(pink.mask, step, pink.bottom - pink.top + 1) & masks[name]
+                    if band.sum() >= 0.3 * pink.mask.sum():
+                        return name, band, step
+        return None
+
+    def _white_below(self, band: np.ndarray, step: tuple[float, float], white: np.ndarray) -> bool:
+        """White in the footprint one band length below the lower band (the base is twice as long)."""
+        down = (step[0], abs(step[1]))
+        height = int(np.ptp(np.flatnonzero(band.any(axis=1)))) + 1
+        return bool((_shifted(band, down, height) & white).sum() >= 0.2 * band.sum())
+
+
+def _centre(mask: np.ndarray) -> tuple[float, float]:
+    ys, xs = np.nonzero(mask)
+    return float(xs.mean()), float(ys.mean())
+
+
+def _shifted(mask: np.ndarray, direction: tuple[float, float], length: float) -> np.ndarray:
+    """The mask moved ``length`` pixels along ``direction``."""
+    norm = math.hypot(*direction) or 1.0
+    shift = np.float32([[1, 0, direction[0] / norm * length], [0, 1, direction[1] / norm * length]])
+    moved = cv2.warpAffine(mask.astype(np.uint8), shift, mask.shape[::-1], flags=cv2.INTER_NEAREST)
+    return moved > 0

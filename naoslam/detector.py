@@ -1,0 +1,273 @@
+"""ONNX front end: frames in, pole detections out (class, confidence, box, full-resolution mask, rotated box).
+
+Pure numpy / OpenCV / onnxruntime, so it runs on the robot. It reproduces Ultralytics' YOLOv8-seg post-processing
+(letterbox, class-aware NMS, prototype masks) with one difference on purpose: each mask is sampled straight from the
+quarter-resolution prototype logits to full frame resolution inside its box (one bilinear warp), so a thin pole's
+width is not quantised to 4 px before the rotated box is measured.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import onnxruntime as ort
+
+from naoslam.landmarks import CLASSES
+from naoslam.model_info import ModelInfo
+
+#: Ultralytics' letterbox fill value.
+PAD_VALUE = 114
+#: Number of mask prototypes of a YOLOv8-seg head.
+MASK_DIM = 32
+
+
+@dataclass(frozen=True)
+class RotatedBox:
+    """Minimum-area rectangle around a mask: centre (px), width/height (px) and tilt of the height side from vertical."""
+
+    cx: float
+    cy: float
+    width: float
+    height: float
+    angle_deg: float
+
+    @classmethod
+    def of_points(cls, points: np.ndarray) -> "RotatedBox":
+        """Fit ``cv2.minAreaRect`` to (N, 2) points; "height" is the side closer to the image vertical."""
+        (cx, cy), _, _ = rect = cv2.minAreaRect(points.astype(np.float32))
+        corners = cv2.boxPoints(rect)
+        side_a, side_b = corners[1] - corners[0], corners[2] - corners[1]
+        upright, across = (side_a, side_b) if abs(side_a[1]) >= abs(side_b[1]) else (side_b, side_a)
+        if upright[1] > 0:
+            upright = -upright
+        angle = float(np.degrees(np.arctan2(upright[0], -upright[1])))
+        return cls(float(cx), float(cy), float(np.hypot(*across)), float(np.hypot(*upright)), angle)
+
+
+@dataclass(frozen=True)
+class Detection:
+    """One pole: class, confidence, box (x1, y1, x2, y2 in frame pixels) and its mask cropped to ``mask_origin``."""
+
+    class_id: int
+    name: str
+    confidence: float
+    box: tuple[float, float, float, float]
+    mask: np.ndarray
+    mask_origin: tuple[int, int]
+    rotated_box: RotatedBox | None
+    centre_column: float
+
+    def full_mask(self, frame_shape: tuple[int, int]) -> np.ndarray:
+        """The mask as a boolean array the size of the frame (height, width)."""
+        out = np.zeros(frame_shape[:2], dtype=bool)
+        x0, y0 = self.mask_origin
+        h, w = self.mask.shape
+        out[y0:y0 + h, x0:x0 + w] = self.mask
+        return out
+
+    def polygon(self) -> np.ndarray:
+        """Outline of the largest mask part as (N, 2) frame pixel coordinates (empty when the mask is empty)."""
+        contours, _ = cv2.findContours(self.mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+        if not contours:
+            return np.zeros((0, 2), dtype=np.float32)
+        return max(contours, key=cv2.contourArea).reshape(-1, 2).astype(np.float32) + self.mask_origin
+
+
+@dataclass(frozen=True)
+class Letterbox:
+    """How a frame of ``frame_hw`` was resized (to ``content_hw``) and padded (``top``, ``left``) to the input size."""
+
+    frame_hw: tuple[int, int]
+    input_hw: tuple[int, int]
+    content_hw: tuple[int, int]
+    top: int
+    left: int
+
+    @classmethod
+    def fit(cls, frame_hw: tuple[int, int], input_hw: tuple[int, int]) -> "Letterbox":
+        """Ultralytics' centred letterbox (``LetterBox(auto=False)``), rounding exactly as it does."""
+        gain = min(input_hw[0] / frame_hw[0], input_hw[1] / frame_hw[1])
+        content = (max(round(frame_hw[0] * gain), 1), max(round(frame_hw[1] * gain), 1))
+        dh, dw = (input_hw[0] - content[0]) / 2, (input_hw[1] - content[1]) / 2
+        return cls(frame_hw, input_hw, content, round(dh - 0.1), round(dw - 0.1))
+
+    def apply(self, frame: np.ndarray) -> np.ndarray:
+        """The frame resized and padded to the network input size."""
+        if frame.shape[:2] != self.content_hw:
+            frame = cv2.resize(frame, self.content_hw[::-1], interpolation=cv2.INTER_LINEAR)
+        bottom = self.input_hw[0] - self.content_hw[0] - self.top
+        right = self.input_hw[1] - self.content_hw[1] - self.left
+        if self.top or bottom or self.left or right:
+            frame = cv2.copyMakeBorder(frame, self.top, bottom, self.left, right, cv2.BORDER_CONSTANT,
+                                       value=(PAD_VALUE,) * 3)
+        return frame
+
+    def boxes_to_frame(self, boxes_xyxy: np.ndarray) -> np.ndarray:
+        """Input-space boxes mapped back to the frame and clipped to it."""
+        sy, sx = self.content_hw[0] / self.frame_hw[0], self.content_hw[1] / self.frame_hw[1]
+        out = (boxes_xyxy - [self.left, self.top, self.left, self.top]) / [sx, sy, sx, sy]
+        out[:, [0, 2]] = out[:, [0, 2]].clip(0, self.frame_hw[1])
+        out[:, [1, 3]] = out[:, [1, 3]].clip(0, self.frame_hw[0])
+        return out
+
+    def frame_to_proto(self, proto_hw: tuple[int, int]) -> tuple[float, float, float, float]:
+        """Affine map (scale_x, offset_x, scale_y, offset_y) from frame pixel index to prototype-map pixel index."""
+        fy, fx = proto_hw[0] / self.input_hw[0], proto_hw[1] / self.input_hw[1]
+        sy = self.content_hw[0] / self.frame_hw[0] * fy
+        sx = self.content_hw[1] / self.frame_hw[1] * fx
+        return sx, (self.left + 0.5 * sx / fx) * fx - 0.5, sy, (self.top + 0.5 * sy / fy) * fy - 0.5
+
+
+def load_session(path: Path | str, threads: int | None = None) -> ort.InferenceSession:
+    """An onnxruntime CPU session; a missing or unreadable file raises an error that names it."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such model file - export one with `poles export --weights best.pt`")
+    options = ort.SessionOptions()
+    options.intra_op_num_threads = threads or os.cpu_count() or 1
+    options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
+    # Idle worker threads sleep instead of spinning: the robot's other processes need the cores between frames.
+    options.add_session_config_entry("session.intra_op.allow_spinning", "0")
+    try:
+        return ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
+    except Exception as exc:  # onnxruntime raises several private exception types
+        raise ValueError(f"{path}: not a readable ONNX model ({str(exc).splitlines()[0][:200]}) - "
+                         "re-export it with `poles export`") from None
+
+
+class LandmarkDetector:
+    """Runs a YOLOv8-seg ONNX pole model on BGR frames.
+
+    ``classes`` is the class list the caller expects (default the six pole codes); a model trained on other names is
+    refused. Pass ``classes=None`` to accept any model.
+    """
+
+    def __init__(self, model: Path | str, conf: float = 0.25, iou: float = 0.7, max_det: int = 300,
+                 classes: tuple[str, ...] | None = CLASSES, threads: int | None = None):
+        self.path = Path(model)
+        self.session = load_session(self.path, threads)
+        self.info = ModelInfo.from_metadata(self.session.get_modelmeta().custom_metadata_map, self.path)
+        if classes is not None and tuple(self.info.classes) != tuple(classes):
+            raise ValueError(f"{self.path}: the model's classes {list(self.info.classes)} are not the pole classes "
+                             f"{list(classes)} - train on a dataset whose data.yaml names them in this order")
+        self._check_signature()
+        self.conf, self.iou, self.max_det = conf, iou, max_det
+        self.input_name = self.session.get_inputs()[0].name
+        self._letterboxes: dict[tuple[int, int], Letterbox] = {}
+
+    @property
+    def classes(self) -> tuple[str, ...]:
+        return self.info.classes
+
+    @property
+    def input_hw(self) -> tuple[int, int]:
+        return self.info.input_hw
+
+    def _check_signature(self) -> None:
+        inputs, outputs = self.session.get_inputs(), self.session.get_outputs()
+        rows = 4 + len(self.info.classes) + MASK_DIM
+        shapes = [o.shape for o in outputs]
+        if (len(inputs) != 1 or len(outputs) != 2 or len(shapes[0]) != 3 or shapes[0][1] != rows
+                or len(shapes[1]) != 4 or shapes[1][1] != MASK_DIM):
+            raise ValueError(f"{self.path}: outputs {shapes} are not a YOLOv8 segmentation head for "
+                             f"{len(self.info.classes)} classes (expected (1, {rows}, N) and (1, {MASK_DIM}, h, w)) - "
+                             "export a *-seg model without NMS")
+
+    def letterbox(self, frame_hw: tuple[int, int]) -> Letterbox:
+        """The (cached) letterbox for frames of this size."""
+        if frame_hw not in self._letterboxes:
+            self._letterboxes[frame_hw] = Letterbox.fit(frame_hw, self.input_hw)
+        return self._letterboxes[frame_hw]
+
+    def prepare(self, frame: np.ndarray) -> tuple[np.ndarray, Letterbox]:
+        """The network input tensor (1, 3, H, W) float32 RGB in 0..1 for a BGR (or grey) uint8 frame."""
+        frame = np.asarray(frame)
+        if frame.size == 0 or frame.ndim not in (2, 3):
+            raise ValueError(f"frame of shape {frame.shape} is empty or not an image - pass an HxWx3 BGR uint8 array")
+        if frame.ndim == 2 or frame.shape[2] == 1:
+            frame = cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR)
+        elif frame.shape[2] == 4:
+            frame = cv2.cvtColor(frame, cv2.COLOR_BGRA2BGR)
+        box = self.letterbox(frame.shape[:2])
+        blob = cv2.dnn.blobFromImage(box.apply(frame), 1.0 / 255.0, swapRB=True)
+        return blob, box
+
+    def forward(self, blob: np.ndarray) -> list[np.ndarray]:
+        """The bare network call: raw (1, 4+nc+32, N) predictions and (1, 32, h, w) prototypes."""
+        return self.session.run(None, {self.input_name: blob})
+
+    def __call__(self, frame: np.ndarray) -> list[Detection]:
+        """Detections in one BGR frame, best first."""
+        blob, box = self.prepare(frame)
+        return self.decode(self.forward(blob), box)
+
+    def decode(self, outputs: list[np.ndarray], box: Letterbox) -> list[Detection]:
+        """Confidence filter, class-aware NMS and masks, as Ultralytics' ``non_max_suppression`` + native masks."""
+        predictions, protos = outputs[0][0], outputs[1][0]
+        nc = len(self.info.classes)
+        scores_all = predictions[4:4 + nc]
+        best = scores_all.max(axis=0)
+        candidates = np.flatnonzero(best > self.conf)
+        if candidates.size == 0:
+            return []
+        scores = best[candidates]
+        class_ids = scores_all[:, candidates].argmax(axis=0)
+        cx, cy, w, h = predictions[:4, candidates]
+        boxes_xyxy = np.stack([cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2], axis=1)
+        keep = cv2.dnn.NMSBoxesBatched(np.stack([cx - w / 2, cy - h / 2, w, h], axis=1).astype(np.float64),
+                                       scores.astype(np.float64), class_ids.astype(np.int32), self.conf, self.iou)
+        keep = np.asarray(keep, dtype=int).reshape(-1)
+        keep = keep[np.argsort(-scores[keep], kind="stable")][: self.max_det]
+        frame_boxes = box.boxes_to_frame(boxes_xyxy[keep])
+        coefficients = predictions[4 + nc:, candidates[keep]].T
+        return [self._detection(int(class_ids[k]), float(scores[k]), frame_boxes[i], coefficients[i], protos, box)
+                for i, k in enumerate(keep)]
+
+    def _detection(self, class_id: int, score: float, frame_box: np.ndarray, coefficients: np.ndarray,
+                   protos: np.ndarray, box: Letterbox) -> Detection:
+        mask, origin = _mask_in_box(coefficients, protos, frame_box, box)
+        rotated = rotated_box_of_mask(mask, origin)
+        centre_column = mask_centre_column(mask, origin) if rotated else float((frame_box[0] + frame_box[2]) / 2)
+        return Detection(class_id, self.info.classes[class_id], score, tuple(float(v) for v in frame_box), mask,
+                         origin, rotated, centre_column)
+
+
+def rotated_box_of_mask(mask: np.ndarray, origin: tuple[int, int] = (0, 0)) -> RotatedBox | None:
+    """Minimum-area rectangle around all of a mask's outlines (None for an empty mask), in frame pixels."""
+    contours, _ = cv2.findContours(np.ascontiguousarray(mask, dtype=np.uint8), cv2.RETR_EXTERNAL,
+                                   cv2.CHAIN_APPROX_NONE)
+    if not contours:
+        return None
+    return RotatedBox.of_points(np.concatenate(contours).reshape(-1, 2) + origin)
+
+
+def mask_centre_column(mask: np.ndarray, origin: tuple[int, int] = (0, 0)) -> float:
+    """Mean column of a mask's pixels as a continuous image coordinate (pixel centres at index + 0.5)."""
+    return float(np.nonzero(mask)[1].mean() + origin[0] + 0.5)
+
+
+def _mask_in_box(coefficients: np.ndarray, protos: np.ndarray, frame_box: np.ndarray,
+                 box: Letterbox) -> tuple[np.ndarray, tuple[int, int]]:
+    """Full-resolution mask inside the box: prototype logits combined over a window, warped bilinearly, > 0."""
+    proto_h, proto_w = protos.shape[1:]
+    frame_h, frame_w = box.frame_hw
+    x1, y1, x2, y2 = frame_box
+    # Pixels whose index lies in [x1, x2) x [y1, y2), as Ultralytics' crop_mask keeps them.
+    c0, r0 = int(np.ceil(x1)), int(np.ceil(y1))
+    c1, r1 = min(int(np.ceil(x2)), frame_w), min(int(np.ceil(y2)), frame_h)
+    if c1 <= c0 or r1 <= r0:
+        return np.zeros((0, 0), dtype=bool), (c0, r0)
+    sx, ox, sy, oy = box.frame_to_proto((proto_h, proto_w))
+    # Prototype window covering the box with one cell of margin, so interpolation at its edge is exact.
+    p0 = max(int(np.floor(c0 * sx + ox)) - 1, 0), max(int(np.floor(r0 * sy + oy)) - 1, 0)
+    p1 = min(int(np.ceil((c1 - 1) * sx + ox)) + 2, proto_w), min(int(np.ceil((r1 - 1) * sy + oy)) + 2, proto_h)
+    window = protos[:, p0[1]:p1[1], p0[0]:p1[0]]
+    logits = np.tensordot(coefficients, window, axes=1).astype(np.float32)
+    # dst(col, row) = logits(sx * (c0 + col) + ox - p0x, sy * (r0 + row) + oy - p0y)
+    warp = np.array([[sx, 0.0, sx * c0 + ox - p0[0]], [0.0, sy, sy * r0 + oy - p0[1]]], dtype=np.float64)
+    sampled = cv2.warpAffine(logits, warp, (c1 - c0, r1 - r0), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                             borderMode=cv2.BORDER_REPLICATE)
+    return sampled > 0, (c0, r0)

@@ -1,0 +1,185 @@
+"""Range calibration, the measurement model, per-image counting and the colour-filter baseline."""
+from __future__ import annotations
+
+import json
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from calibration.fit import calibrate, fit_power_law
+from calibration.run import embed_calibration, load_calibration, run_calibration
+from calibration.samples import collect_samples
+from detector.cli import main
+from detector.datasets import load_dataset
+from detector.datasets.truth import load_truth
+from detector.evaluation.counting import evaluate_image, precision_recall, totals
+from detector.evaluation.predictors import ColourFilterPredictor, OnnxPredictor, Prediction
+from detector.evaluation.run import evaluate
+from detector.synth.generate import SynthJob, generate_dataset
+from detector.synth.render import render_scene
+from detector.synth.scene import calibration_scene
+from naoslam.camera import PinholeCamera
+from naoslam.colour_filter import ColourFilter
+from naoslam.landmarks import CLASSES
+from naoslam.measurement import MeasurementModel, PowerLaw, RangeCalibration
+
+
+@pytest.fixture(scope="module")
+def calibration_shots(tmp_path_factory):
+    """The renderer's calibration shots: every class at 0.5-5 m and 0, +-10, +-20 deg (640x480)."""
+    return generate_dataset(tmp_path_factory.mktemp("calib") / "shots", SynthJob(90, seed=4, calibration_shots=True),
+                            workers=2, progress=False)
+
+
+def test_fit_recovers_a_known_power_law():
+    px = np.geomspace(10, 300, 40)
+    law, r2 = fit_power_law(px, 55.0 * px ** -0.98)
+    assert law.a == pytest.approx(55.0, rel=1e-9) and law.b == pytest.approx(-0.98, abs=1e-12) and r2 == pytest.approx(1)
+
+
+def test_calibration_shots_recover_the_camera_law(calibration_shots):
+    calibration, report = calibrate(collect_samples(calibration_shots, progress=False))
+    # A pinhole camera makes pixel size inversely proportional to range: exponents near -1.
+    assert calibration.width_law.b == pytest.approx(-1.0, abs=0.06)
+    assert calibration.height_law.b == pytest.approx(-1.0, abs=0.06)
+    # Height law against the pinhole prediction: height_px = f * 0.42 m / range.
+    focal = PinholeCamera().focal_px
+    assert calibration.height_law(focal * 0.42 / 2.0) == pytest.approx(2.0, rel=0.05)
+    far = [row for row in report["errors_by_range"] if float(row["range_m"].split("-")[0]) >= 1.25]
+    assert far and all(row["rule"] < 5.0 and row["fused"] < 5.0 for row in far)
+    assert report["colour"]["b"] == pytest.approx(-1.0, abs=0.06)
+    assert math.degrees(calibration.bearing_std_rad) < 0.3
+
+
+def test_range_rule_uses_width_for_a_cut_pole_and_scales_with_resolution():
+    calibration = RangeCalibration(PowerLaw(50.0, -1.0, 0.06), PowerLaw(220.0, -1.0, 0.03), upright_ratio=0.21)
+    # Whole pole at 2 m: width 25 px, height 110 px; both laws agree and fusion leans on the better height law.
+    fused, fused_std, used = calibration.range_from_box(25, 110, 640)
+    assert used == "fused" and fused == pytest.approx(2.0, rel=1e-6) and fused_std < 0.03 * 2.0
+    # The same pole with its base cut off by the image border: too wide for its height, so the width decides.
+    assert calibration.range_from_box(25, 60, 640, "rule")[0:3:2] == (pytest.approx(2.0), "width")
+    # A 1280 px frame sees everything twice as large; normalised to the reference width it is the same range.
+    assert calibration.range_from_box(50, 220, 1280)[0] == pytest.approx(fused)
+    with pytest.raises(ValueError, match="not one of"):
+        calibration.range_from_box(25, 110, 640, "median")
+
+
+def test_measurement_model_keeps_confident_detections_only(tiny_onnx, synth_dataset):
+    from naoslam.detector import LandmarkDetector
+
+    calibration = RangeCalibration(PowerLaw(50.0, -1.0), PowerLaw(220.0, -1.0))
+    frame = cv2.imread(str(sorted((synth_dataset / "test" / "images").glob("*.jpg"))[0]))
+    detections = LandmarkDetector(tiny_onnx, conf=0.001)(frame)
+    threshold = float(np.median([d.confidence for d in detections]))
+    measurements = MeasurementModel(calibration, min_confidence=threshold).measure(detections, frame.shape[1])
+    assert 0 < len(measurements) < len(detections)
+    for m in measurements:
+        assert m.confidence >= threshold and m.range_m > 0 and m.range_std > 0
+        assert abs(m.bearing_rad) <= math.radians(56.3 / 2) + 1e-9 and m.signature in CLASSES
+
+
+def test_calibrate_command_writes_json_plot_and_embeds(calibration_shots, tiny_onnx, tmp_path):
+    model = tmp_path / "model.onnx"
+    model.write_bytes(tiny_onnx.read_bytes())
+    out, plot = tmp_path / "calibration.json", tmp_path / "fit.png"
+    assert main(["calibrate", "--data", str(calibration_shots), "--out", str(out), "--plot", str(plot),
+                 "--embed", str(model)]) == 0
+    assert cv2.imread(str(plot)) is not None
+    calibration = load_calibration(out)
+    assert OnnxPredictor(model).calibration == calibration
+    assert main(["calibrate", "--data", str(calibration_shots), "--out", str(out)]) == 2  # exists, no --force
+
+
+def test_truth_csv_errors_name_file_and_line(synth_dataset, tmp_path):
+    dataset = load_dataset(synth_dataset)
+    sample = next(s for s in dataset.samples if len({i.cls for i in s.instances}) == len(s.instances) > 0)
+    good = tmp_path / "truth.csv"
+    good.write_text(f"image,class,range_m\n{sample.image.name},{sample.instances[0].cls},2.5\n")
+    assert load_truth(dataset, good)[sample.image.name][0]["range_m"] == 2.5
+    bad = tmp_path / "bad.csv"
+    bad.write_text(f"image,class,range_m\n{sample.image.name},{sample.instances[0].cls},far\n")
+    with pytest.raises(ValueError, match=r"bad.csv:2: range_m 'far' is not a number"):
+        load_truth(dataset, bad)
+
+
+def _rectangle(x0, width=10, height=40, shape=(100, 100)):
+    mask = np.zeros(shape, bool)
+    mask[20:20 + height, x0:x0 + width] = True
+    return mask
+
+
+def _prediction(classes, masks, scores=None):
+    return Prediction(list(classes), np.array(scores or [0.9] * len(classes)), list(masks),
+                      [0.0] * len(classes), [None] * len(classes))
+
+
+def test_perfect_predictions_score_one():
+    masks = [_rectangle(10), _rectangle(50)]
+    image = evaluate_image("a.jpg", ["bp", "pg"], masks, [None, None], _prediction(["bp", "pg"], masks))
+    counts = totals([image], 0.5)
+    assert counts == {"tp": 2, "fp": 0, "fn": 0, "tn": 0}
+    assert precision_recall(counts)[:2] == (1.0, 1.0)
+    assert [image.overlap[p, r] for p, r in image.match(0.5)] == [1.0, 1.0]
+
+
+def test_shifted_masks_give_the_hand_computed_iou():
+    truth = [_rectangle(10)]
+    # Shifted 2 px: intersection 8x40, union 12x40 -> IoU 2/3, still a true positive.
+    near = evaluate_image("a.jpg", ["py"], truth, [None], _prediction(["py"], [_rectangle(12)]))
+    assert near.overlap[0, 0] == pytest.approx(2 / 3) and near.counts(0.5)["tp"] == 1
+    # Shifted 6 px: 4x40 over 16x40 -> 0.25: one false positive and one false negative.
+    far = evaluate_image("a.jpg", ["py"], truth, [None], _prediction(["py"], [_rectangle(16)]))
+    assert far.overlap[0, 0] == pytest.approx(0.25) and far.counts(0.5) == {"tp": 0, "fp": 1, "fn": 1, "tn": 0}
+    # Right place, wrong class: not a match.
+    wrong = evaluate_image("a.jpg", ["py"], truth, [None], _prediction(["yp"], truth))
+    assert wrong.counts(0.5) == {"tp": 0, "fp": 1, "fn": 1, "tn": 0}
+    # Below the threshold a detection does not count at all.
+    low = evaluate_image("a.jpg", ["py"], truth, [None], _prediction(["py"], truth, [0.3]))
+    assert low.counts(0.5) == {"tp": 0, "fp": 0, "fn": 1, "tn": 0}
+
+
+def test_empty_images_without_detections_are_true_negatives():
+    images = [evaluate_image(f"{i}.jpg", [], [], [], _prediction([], [])) for i in range(5)]
+    assert totals(images, 0.5) == {"tp": 0, "fp": 0, "fn": 0, "tn": 5}
+
+
+def _clean_pole_frame(code: str, range_m: float, angle_deg: float = 0.0) -> np.ndarray:
+    scene = calibration_scene(np.random.default_rng(2), PinholeCamera(), code, range_m, angle_deg)
+    return cv2.cvtColor((render_scene(scene).image * 255).astype(np.uint8), cv2.COLOR_RGB2BGR)
+
+
+@pytest.mark.parametrize("code", CLASSES)
+def test_colour_filter_finds_poles_in_clean_frames(code):
+    found = ColourFilter()(_clean_pole_frame(code, 1.5, 10.0))
+    assert code in [d.name for d in found]
+    hit = next(d for d in found if d.name == code)
+    # The pole stands 10 deg to the left: the band-dividing point lies left of centre, near that bearing.
+    bearing = math.degrees(float(PinholeCamera().bearing_of_column(hit.centre_column)))
+    assert bearing == pytest.approx(10.0, abs=1.0)
+
+
+def test_colour_filter_rejects_a_pink_poster_without_a_second_band():
+    frame = np.full((480, 640, 3), (235, 235, 235), np.uint8)  # white wall
+    frame[150:260, 300:360] = (160, 70, 235)  # pink poster (BGR)
+    assert ColourFilter()(frame) == []
+    frame[260:370, 300:360] = (230, 166, 64)  # a blue band under it, but nothing white below: still no landmark
+    frame[370:, :] = (40, 120, 40)
+    assert ColourFilter()(frame) == []
+
+
+def test_evaluate_writes_metrics_plots_and_overlays(synth_dataset, tmp_path):
+    metrics = evaluate(ColourFilterPredictor(), synth_dataset, tmp_path / "eval", progress=False)
+    saved = json.loads((tmp_path / "eval" / "metrics.json").read_text())
+    for key in ("precision", "recall", "mean_iou", "tp", "fp", "fn", "tn", "images", "sweep", "bearing_error"):
+        assert key in saved
+    assert saved["images"] == len(load_dataset(synth_dataset).split("test"))
+    assert saved["tp"] + saved["fn"] == sum(len(s.instances) for s in load_dataset(synth_dataset).split("test"))
+    assert cv2.imread(str(tmp_path / "eval" / "per_image.png")) is not None
+    assert len(list((tmp_path / "eval" / "errors").glob("*.jpg"))) == metrics["overlays"]
+
+
+def test_real_poles_calibration_images_measure(real_poles):
+    samples = collect_samples(real_poles, progress=False)
+    assert len(samples) == 6 and all(s.partial for s in samples) and all(s.image_width == 1280 for s in samples)

@@ -1,0 +1,143 @@
+"""The naoslam ONNX front end: agreement with Ultralytics, full-resolution masks, rotated boxes, bad input."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from dataclasses import replace
+
+import cv2
+import numpy as np
+import onnx
+import pytest
+
+from export.onnx_export import export_onnx, read_info, write_metadata
+from export.verify import compare, frontend_predict, ultralytics_predict
+from naoslam.detector import Detection, LandmarkDetector, Letterbox, RotatedBox, _mask_in_box
+
+
+def _frames(dataset, n=8):
+    paths = sorted((dataset / "test" / "images").glob("*.jpg")) + sorted((dataset / "train" / "images").glob("*.jpg"))
+    return [cv2.imread(str(p)) for p in paths[:n]]
+
+
+@pytest.fixture(scope="module")
+def padded_onnx(tiny_weights, tmp_path_factory):
+    """The tiny model exported square: 320x240 frames are letterboxed with 16 rows of padding top and bottom."""
+    return export_onnx(tiny_weights, tmp_path_factory.mktemp("padded") / "square.onnx", (128, 128))
+
+
+@pytest.mark.parametrize("which", ["rectangular", "padded"])
+def test_front_end_matches_ultralytics_predict(which, tiny_onnx, padded_onnx, synth_dataset):
+    model = tiny_onnx if which == "rectangular" else padded_onnx
+    frames = _frames(synth_dataset)
+    reference = ultralytics_predict(model, frames, read_info(model).input_hw, conf=0.001)
+    ours = frontend_predict(model, frames, conf=0.001)
+    agreement = compare(reference, ours, conf=0.001, margin=0.0)
+    assert agreement.reference > 20 and agreement.matched == agreement.reference == agreement.candidate
+    assert agreement.class_mismatches == 0
+    assert agreement.box_iou_min >= 0.99
+    assert agreement.mask_iou_mean >= 0.95 and agreement.mask_iou_min >= 0.8
+    assert agreement.score_diff_max < 1e-4
+
+
+def test_detections_are_complete(tiny_onnx, synth_dataset):
+    frame = _frames(synth_dataset, 1)[0]
+    found = LandmarkDetector(tiny_onnx, conf=0.001)(frame)
+    assert found and all(isinstance(d, Detection) for d in found)
+    assert [d.confidence for d in found] == sorted((d.confidence for d in found), reverse=True)
+    for d in found:
+        x1, y1, x2, y2 = d.box
+        assert 0 <= x1 < x2 <= frame.shape[1] and 0 <= y1 < y2 <= frame.shape[0]
+        assert d.full_mask(frame.shape).shape == frame.shape[:2]
+        if d.mask.any():
+            assert d.rotated_box is not None and d.rotated_box.width > 0
+            assert x1 - 1 <= d.centre_column <= x2 + 1
+
+
+def test_mask_is_sampled_at_full_resolution_inside_the_box():
+    """With no letterbox, the in-box warp equals upsampling the whole logit map and cropping it."""
+    rng = np.random.default_rng(0)
+    protos = rng.normal(size=(32, 120, 160)).astype(np.float32)
+    protos = np.stack([cv2.GaussianBlur(p, (0, 0), 3) for p in protos])
+    coefficients = rng.normal(size=32).astype(np.float32)
+    box = Letterbox.fit((480, 640), (480, 640))
+    frame_box = np.array([101.3, 57.8, 203.2, 391.6])
+    mask, (x0, y0) = _mask_in_box(coefficients, protos, frame_box, box)
+    full = cv2.resize(np.tensordot(coefficients, protos, axes=1), (640, 480), interpolation=cv2.INTER_LINEAR) > 0
+    assert (x0, y0) == (102, 58) and mask.shape == (392 - 58, 204 - 102)
+    assert np.array_equal(mask, full[58:392, 102:204])
+
+
+def test_rotated_box_measures_a_tilted_pole():
+    mask = np.zeros((200, 200), np.uint8)
+    corners = cv2.boxPoints(((100, 100), (20, 120), 10.0))
+    cv2.fillPoly(mask, [np.round(corners).astype(np.int32)], 1)
+    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    rotated = RotatedBox.of_points(np.concatenate(contours).reshape(-1, 2))
+    assert rotated.width == pytest.approx(20, abs=1.5) and rotated.height == pytest.approx(120, abs=1.5)
+    assert abs(rotated.angle_deg) == pytest.approx(10, abs=1.0)
+    assert (rotated.cx, rotated.cy) == pytest.approx((100, 100), abs=1.0)
+
+
+def test_grey_frame_gives_what_ultralytics_gives(tiny_onnx):
+    grey = np.full((240, 320, 3), 128, np.uint8)
+    ours = LandmarkDetector(tiny_onnx, conf=0.001)(grey)
+    reference = ultralytics_predict(tiny_onnx, [grey], (96, 128), conf=0.001)[0]
+    assert len(ours) == len(reference.scores)
+    assert sorted(d.class_id for d in ours) == sorted(reference.class_ids.tolist())
+
+
+def test_grey_and_four_channel_frames_are_accepted(tiny_onnx, synth_dataset):
+    detector = LandmarkDetector(tiny_onnx, conf=0.001)
+    frame = _frames(synth_dataset, 1)[0]
+    as_grey = detector(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY))
+    via_bgr = detector(cv2.cvtColor(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), cv2.COLOR_GRAY2BGR))
+    assert [d.box for d in as_grey] == [d.box for d in via_bgr]
+    assert [d.box for d in detector(cv2.cvtColor(frame, cv2.COLOR_BGR2BGRA))] == [d.box for d in detector(frame)]
+
+
+@pytest.mark.parametrize("frame", [np.zeros((0, 0, 3), np.uint8), np.zeros((10,), np.uint8)])
+def test_empty_frame_is_refused(tiny_onnx, frame):
+    with pytest.raises(ValueError, match="empty or not an image"):
+        LandmarkDetector(tiny_onnx)(frame)
+
+
+def test_missing_and_corrupt_models_are_named(tmp_path):
+    with pytest.raises(FileNotFoundError, match="poles export"):
+        LandmarkDetector(tmp_path / "missing.onnx")
+    corrupt = tmp_path / "corrupt.onnx"
+    corrupt.write_bytes(b"\x08\x07not a protobuf" * 50)
+    with pytest.raises(ValueError, match="corrupt.onnx: not a readable ONNX model"):
+        LandmarkDetector(corrupt)
+
+
+def test_model_with_other_class_names_is_refused(tiny_onnx, tmp_path):
+    other = write_metadata(tiny_onnx, replace(read_info(tiny_onnx), classes=("ball", "robot", "goal", "a", "b", "c")),
+                           tmp_path / "other.onnx")
+    with pytest.raises(ValueError, match=r"classes \['ball'.*are not the pole classes"):
+        LandmarkDetector(other)
+    assert LandmarkDetector(other, classes=None).classes[0] == "ball"
+
+
+def test_model_without_a_segmentation_head_is_refused(tmp_path):
+    graph = onnx.helper.make_graph(
+        [onnx.helper.make_node("Identity", ["images"], ["out"])], "g",
+        [onnx.helper.make_tensor_value_info("images", onnx.TensorProto.FLOAT, [1, 3, 64, 64])],
+        [onnx.helper.make_tensor_value_info("out", onnx.TensorProto.FLOAT, [1, 3, 64, 64])])
+    model = onnx.helper.make_model(graph, opset_imports=[onnx.helper.make_opsetid("", 17)])
+    model.ir_version = 8
+    onnx.helper.set_model_props(model, {"names": "{0: 'bp', 1: 'gp', 2: 'yp', 3: 'pb', 4: 'pg', 5: 'py'}",
+                                        "imgsz": "[64, 64]"})
+    path = tmp_path / "identity.onnx"
+    onnx.save(model, str(path))
+    with pytest.raises(ValueError, match="not a YOLOv8 segmentation head"):
+        LandmarkDetector(path)
+
+
+def test_front_end_imports_no_training_libraries(tiny_onnx):
+    code = ("import sys, numpy as np; from naoslam.detector import LandmarkDetector; "
+            f"LandmarkDetector({str(tiny_onnx)!r}, conf=0.001)(np.zeros((240, 320, 3), np.uint8)); "
+            "bad = [m for m in ('torch', 'ultralytics', 'albumentations', 'detector', 'export') if m in sys.modules]; "
+            "print(bad); sys.exit(1 if bad else 0)")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert result.returncode == 0, result.stdout + result.stderr

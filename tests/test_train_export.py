@@ -1,0 +1,101 @@
+"""Training on the CPU, ONNX export with metadata, verification against PyTorch, INT8 quantisation."""
+from __future__ import annotations
+
+import json
+import os
+
+import cv2
+import onnx
+import pytest
+
+from detector.cli import main
+from detector.training import TrainSettings, summarise_run, train_model
+from detector.training_curves import read_results
+from export.onnx_export import export_onnx, read_info
+from export.quantize import decode_head_nodes
+from export.run import ExportJob, ExportMismatch, run_export
+from naoslam.landmarks import CLASSES
+
+
+def test_training_writes_run_curves_and_best_epoch(tiny_run):
+    assert (tiny_run / "weights" / "best.pt").is_file() and (tiny_run / "weights" / "last.pt").is_file()
+    assert read_results(tiny_run / "results.csv")["epoch"] == [1.0]
+    curves = cv2.imread(str(tiny_run / "training_curves.png"))
+    assert curves is not None and curves.shape[1] > 1000
+    summary = summarise_run(tiny_run)
+    assert summary["best_epoch"] == 1 and 0.0 <= summary["mAP50(M)"] <= 1.0
+
+
+def test_training_uses_every_core(tiny_run):
+    import torch
+
+    assert torch.get_num_threads() == os.cpu_count()
+
+
+def test_training_refuses_an_existing_run_and_a_finished_resume(tiny_run, synth_dataset):
+    settings = TrainSettings(model="yolov8n-seg", epochs=1, imgsz=64)
+    with pytest.raises(FileExistsError, match="already holds a run"):
+        train_model(synth_dataset, tiny_run, settings)
+    with pytest.raises(ValueError, match="finished all its epochs"):
+        train_model(synth_dataset, tiny_run, settings, resume=True)
+
+
+@pytest.mark.parametrize("kwargs, message", [({"model": "yolov9-seg"}, "is not one of"),
+                                             ({"imgsz": 100}, "multiple of the model stride"),
+                                             ({"epochs": 0}, "at least 1")])
+def test_train_settings_refuse_bad_values(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        TrainSettings(**kwargs)
+
+
+def test_train_command_names_a_missing_dataset(tmp_path, capsys):
+    assert main(["train", "--data", str(tmp_path / "nowhere"), "--out", str(tmp_path / "run")]) == 2
+    assert "no data.yaml" in capsys.readouterr().err
+
+
+def test_export_carries_metadata(tiny_onnx):
+    info = read_info(tiny_onnx)
+    assert info.classes == CLASSES and info.input_hw == (96, 128) and info.stride == 32
+    assert info.model.startswith("yolov8")
+    shapes = [[d.dim_value for d in o.type.tensor_type.shape.dim] for o in onnx.load(str(tiny_onnx)).graph.output]
+    assert shapes[0][:2] == [1, 4 + len(CLASSES) + 32] and shapes[1][:2] == [1, 32]
+
+
+def test_export_never_overwrites_without_force(tiny_weights, tiny_onnx):
+    with pytest.raises(FileExistsError, match="--force"):
+        export_onnx(tiny_weights, tiny_onnx, (96, 128))
+
+
+def test_decode_head_stays_float(tiny_onnx):
+    excluded = decode_head_nodes(onnx.load(str(tiny_onnx)))
+    assert any("/dfl/" in name for name in excluded)
+    assert any("Concat" in name for name in excluded)
+    assert not any("/proto/" in name or "cv2.0.0/" in name for name in excluded)
+    assert all(name.startswith("/model.22/") for name in excluded)
+
+
+def test_run_export_verifies_quantizes_and_reports(tiny_weights, synth_dataset, tmp_path):
+    job = ExportJob(tiny_weights, tmp_path / "m.onnx", (96, 128), synth_dataset, int8=True, conf=0.001)
+    report = run_export(job)
+    assert report["fp32_problems"] == []
+    fp32 = report["fp32_vs_pytorch"]
+    assert fp32["matched"] == fp32["reference"] > 0 and fp32["box_iou_min"] > 0.99
+    assert read_info(job.int8_path).extra["precision"] == "int8"
+    assert report["int8_vs_fp32"]["matched"] > 0
+    assert set(report["latency_ms"]) == {"fp32", "int8"} and report["recommended"] in ("fp32", "int8")
+    assert json.loads(job.report_path.read_text())["onnx"] == str(job.out)
+
+
+def test_run_export_fails_and_writes_nothing_when_onnx_disagrees(tiny_weights, synth_dataset, tmp_path,
+                                                                 monkeypatch):
+    import export.run
+
+    def shifted_boxes(model, frames, conf):
+        return [type(d)(d.class_ids, d.scores, d.boxes + 4.0, d.masks) for d in
+                export.run.ultralytics_predict(tiny_weights, frames, (96, 128), conf)]
+
+    monkeypatch.setattr(export.run, "frontend_predict", shifted_boxes)
+    job = ExportJob(tiny_weights, tmp_path / "m.onnx", (96, 128), synth_dataset, conf=0.001)
+    with pytest.raises(ExportMismatch, match="box IoU down to"):
+        run_export(job)
+    assert list(tmp_path.iterdir()) == []
