@@ -8,9 +8,6 @@ from pathlib import Path
 from augment.config import OPERATIONS, AugmentConfig
 from detector.datasets.model import DatasetError
 
-NOT_BUILT = {
-    "slam": "run an EKF SLAM back end on a simulated walk or a log",
-}
 
 
 #: Augmentation strength limits that have a flag of their own (AugmentConfig field -> help text).
@@ -132,28 +129,80 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--imgsz", type=int, default=640, help="inference size for .pt checkpoints")
     evaluate.add_argument("--out", type=Path, required=True, help="folder for metrics.json, plots and FP/FN overlays")
 
+    slam = sub.add_parser("slam", help="run an EKF SLAM back end on a simulated walk, a UTIAS log or a recording")
+    source = slam.add_mutually_exclusive_group(required=True)
+    source.add_argument("--sim", choices=("square", "circle", "figure8"), help="simulated walk on the SPL field")
+    source.add_argument("--utias", type=Path, help="UTIAS MRCLAM folder (Odometry.dat, Measurement.dat, ...)")
+    source.add_argument("--frames", type=Path, help="recorded frames named <time>.jpg (with --odometry)")
+    slam.add_argument("--odometry", type=Path, help="odometry CSV t,x,y,theta for --frames")
+    slam.add_argument("--frontend", help="model.onnx or colour-filter: the image-level simulation / recording")
+    slam.add_argument("--calibration", type=Path, help="calibration.json (default: the one in the model)")
+    slam.add_argument("--conf", type=float, default=0.85, help="detections used from this confidence (thesis 0.85)")
+    slam.add_argument("--time-offset", type=float, default=0.3, help="frame time shift for recordings (thesis +0.3 s)")
+    slam.add_argument("--backend", choices=("ekf", "fej"), default="ekf")
+    slam.add_argument("--min-views", type=int, default=1, help="sightings before a landmark enters the map")
+    slam.add_argument("--outlier-filter", action="store_true", help="drop measurements 0.4 m / pi/3 off prediction")
+    slam.add_argument("--gate", type=float, nargs="?", const=9.21, help="Mahalanobis gate (chi-square, default 9.21)")
+    slam.add_argument("--duration", type=float, help="seconds of the walk or log (sim default 60)")
+    slam.add_argument("--seed", type=int, default=0)
+    slam.add_argument("--compare", type=int, metavar="SEEDS",
+                      help="also run every back end on SEEDS seeds and print the comparison table")
+    slam.add_argument("--out", type=Path, required=True)
+
     demo = sub.add_parser("demo", help="run the whole pipeline on a synthetic dataset")
     demo.add_argument("--out", type=Path, default=Path("runs/demo"))
     demo.add_argument("--images", type=int, default=300)
     demo.add_argument("--seed", type=int, default=0)
 
-    for name, text in NOT_BUILT.items():
-        sub.add_parser(name, help=f"{text} (not built yet)").add_argument("rest", nargs=argparse.REMAINDER)
     return parser
+
+
+def _slam(args: argparse.Namespace) -> int:
+    from calibration.run import load_calibration
+    from detector.slam_run import (BACKENDS, FrontEnd, compare_backends, print_comparison, recorded_sequence,
+                                   sim_sequence, utias_sequence, write_outputs)
+    from naoslam.ekf_slam import SlamConfig
+    from naoslam.runner import run_slam
+    from naoslam.sim import SimConfig
+
+    calibration = load_calibration(args.calibration) if args.calibration else None
+    front_end = FrontEnd(args.frontend, calibration, args.conf) if args.frontend else None
+    if args.sim:
+        def make(seed: int):
+            return sim_sequence(SimConfig(path=args.sim, duration_s=args.duration or 60.0, seed=seed), front_end)
+    elif args.utias:
+        def make(seed: int):
+            return utias_sequence(args.utias, args.duration)
+    else:
+        if not (args.odometry and front_end):
+            raise ValueError("--frames needs --odometry t,x,y,theta CSV and --frontend model.onnx")
+
+        def make(seed: int):
+            return recorded_sequence(args.frames, args.odometry, front_end, args.time_offset)
+    config = SlamConfig(fej=args.backend == "fej", outlier_filter=args.outlier_filter, gate=args.gate,
+                        min_views=args.min_views)
+    sequence = make(args.seed)
+    metrics = write_outputs(run_slam(sequence, config), sequence, args.out)
+    summary = ", ".join(f"{key} mean {metrics[key]['mean']:.3f} m" for key in
+                        ("robot_error", "landmark_error", "odometry_error") if key in metrics)
+    print(f"{config.label} on {sequence.name}: {summary}; wrote {args.out}")
+    if args.compare:
+        seeds = list(range(args.seed, args.seed + (args.compare if args.sim else 1)))
+        rows = compare_backends(make, seeds, BACKENDS)
+        from naoslam.atomic import write_json
+
+        write_json(args.out / "comparison.json", rows)
+        print_comparison(rows, f"back ends on {sequence.name} ({len(seeds)} seed(s))")
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        return COMMANDS.get(args.command, _not_built)(args)
+        return COMMANDS[args.command](args)
     except (DatasetError, FileExistsError, FileNotFoundError, ValueError) as exc:
         print(f"poles {args.command}: {exc}", file=sys.stderr)
         return 2
-
-
-def _not_built(args: argparse.Namespace) -> int:
-    print(f"poles {args.command}: not built yet ({NOT_BUILT[args.command]}).", file=sys.stderr)
-    return 2
 
 
 def _synth(args: argparse.Namespace) -> int:
@@ -270,7 +319,7 @@ def _demo(args: argparse.Namespace) -> int:
 
 COMMANDS = {"synth": _synth, "check": _check, "convert": _convert, "augment": _augment, "split": _split,
             "train": _train, "export": _export, "calibrate": _calibrate, "evaluate": _evaluate,
-            "demo": _demo}
+            "slam": _slam, "demo": _demo}
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -14,6 +14,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from naoslam.camera import PinholeCamera
+from naoslam.landmarks import PoleGeometry
 
 #: Range choices: the thesis's rule, only one law, or inverse-variance fusion of both.
 RANGE_METHODS = ("rule", "width", "height", "fused")
@@ -87,6 +88,16 @@ class RangeCalibration:
         log_range = (weights @ np.log([by_width[0], by_height[0]])) / weights.sum()
         fused = float(np.exp(log_range))
         return fused, fused / math.sqrt(weights.sum()), "fused"
+
+
+    def colour_range(self, band_distance_px: float, image_width: int,
+                     geometry: PoleGeometry = PoleGeometry()) -> tuple[float, float]:
+        """Range (m) and its standard deviation from the colour filter's band-centre distance (pixels)."""
+        if self.colour_law is None:
+            raise ValueError("this calibration has no colour law - calibrate with poles whose band distance is known")
+        per_cm = band_distance_px * self.reference_width_px / image_width / (geometry.band_height * 100)
+        range_m = float(self.colour_law(per_cm))
+        return range_m, range_m * self.colour_law.relative_std
 
 
 def bearing_of_column(column: float, image_width: int, hfov_deg: float, linear: bool = False) -> float:

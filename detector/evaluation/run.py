@@ -17,7 +17,7 @@ from detector.evaluation.plots import write_overlays, plot_per_image, plot_sweep
 from detector.evaluation.predictors import Predictor
 from naoslam.atomic import write_json
 from naoslam.camera import PinholeCamera
-from naoslam.landmarks import CLASSES, PoleGeometry
+from naoslam.landmarks import CLASSES
 
 
 def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", conf: float = 0.5,
@@ -103,10 +103,7 @@ def _measurement_errors(images: list[ImageEvaluation], conf: float, predictor: P
 
 def _range(pred, p: int, calibration, image_width: int) -> float | None:
     if pred.band_distances is not None:
-        if calibration.colour_law is None:
-            return None
-        per_cm = pred.band_distances[p] * calibration.reference_width_px / image_width / (PoleGeometry().band_height * 100)
-        return float(calibration.colour_law(per_cm))
+        return calibration.colour_range(pred.band_distances[p], image_width)[0] if calibration.colour_law else None
     if pred.sizes[p] is None:
         return None
     return calibration.range_from_box(*pred.sizes[p], image_width)[0]

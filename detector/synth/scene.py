@@ -106,6 +106,11 @@ def _free_spot(rng, pose: CameraPose, camera: PinholeCamera, config: SceneConfig
     return None
 
 
+def venue(rng: np.random.Generator) -> tuple[Lighting, Room]:
+    """A random room and its light: one venue, shared by every frame of a walk."""
+    return _lighting(rng), _room(rng)
+
+
 def _lighting(rng) -> Lighting:
     azimuth, elevation = rng.uniform(-math.pi, math.pi), math.radians(rng.uniform(25, 75))
     direction = np.array([math.cos(elevation) * math.cos(azimuth), math.cos(elevation) * math.sin(azimuth), math.sin(elevation)])

@@ -1,0 +1,55 @@
+"""Frames a Nao would see along a simulated walk: the six poles at their field positions, one venue, ray-cast."""
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+from tqdm import tqdm
+
+from detector.parallel import default_workers, ordered_map
+from detector.synth.effects import apply_camera_effects, camera_effects
+from detector.synth.objects import pole
+from detector.synth.render import render_scene
+from detector.synth.scene import Scene, goal_posts, venue
+from naoslam.camera import CameraPose, PinholeCamera
+from naoslam.field import FieldGeometry
+from naoslam.landmarks import PoleGeometry
+from naoslam.sim import Walk
+
+#: The head looks slightly down while walking, as the thesis's Nao did.
+WALK_PITCH_DEG = 8.0
+CAMERA_HEIGHT_M = 0.5
+
+_EFFECTS = None
+
+
+def walk_scene(walk: Walk, step: int, seed: int, camera: PinholeCamera) -> Scene:
+    """The scene at one step: camera on the true pose with a little walking sway, the poles, the goals."""
+    rng = np.random.default_rng([seed, step])
+    lighting, room = venue(np.random.default_rng([seed, 0xF1E1D]))
+    x, y, theta = walk.steps[step].true_pose
+    pose = CameraPose(x, y, CAMERA_HEIGHT_M + rng.normal(0, 0.005), theta,
+                      math.radians(WALK_PITCH_DEG + rng.normal(0, 1.0)), math.radians(rng.normal(0, 1.5)))
+    scene = Scene(camera, pose, lighting, room, effects_seed=int(rng.integers(2**31)), jpeg_quality=90)
+    scene.cylinders = [pole(code, px, py, PoleGeometry()) for code, (px, py) in walk.landmarks.items()]
+    scene.cylinders += goal_posts(FieldGeometry())
+    return scene
+
+
+def _render(args: tuple[Walk, int, int, PinholeCamera]) -> np.ndarray:
+    global _EFFECTS
+    if _EFFECTS is None:
+        _EFFECTS = camera_effects()
+    scene = walk_scene(*args)
+    image = (render_scene(scene).image * 255.0 + 0.5).astype(np.uint8)
+    image = apply_camera_effects(_EFFECTS, image, scene.effects_seed)
+    return cv2.cvtColor(image, cv2.COLOR_RGB2BGR)
+
+
+def render_walk(walk: Walk, seed: int = 0, camera: PinholeCamera = PinholeCamera(), workers: int | None = None,
+                progress: bool = True) -> list[np.ndarray]:
+    """BGR frames at every step of the walk that has a frame (where the measurement-level sim has sightings)."""
+    steps = [i for i, s in enumerate(walk.steps) if s.measurements is not None]
+    frames = ordered_map(_render, [(walk, i, seed, camera) for i in steps], workers or default_workers(len(steps)))
+    return list(tqdm(frames, total=len(steps), desc="rendering the walk", unit="frame", disable=not progress))

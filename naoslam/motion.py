@@ -1,0 +1,100 @@
+"""Motion models for a planar robot pose (x, y, theta): odometry (rot1, trans, rot2) and velocity (v, w, dt).
+
+Each model gives the new pose, its Jacobian G with respect to the pose, V with respect to the control, and the
+control noise M (Thrun, Burgard and Fox, Probabilistic Robotics, 5.3-5.4), so the pose noise is V M V^T.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+def wrap(angle: float | np.ndarray) -> float | np.ndarray:
+    """Angle wrapped to (-pi, pi]."""
+    return np.arctan2(np.sin(angle), np.cos(angle))
+
+
+@dataclass(frozen=True)
+class OdometryModel:
+    """Odometry as rot1, trans, rot2 between two odometry poses; alphas scale the control noise."""
+
+    alphas: tuple[float, float, float, float] = (0.1, 0.02, 0.1, 0.02)
+
+    @staticmethod
+    def control(previous: np.ndarray, current: np.ndarray) -> np.ndarray:
+        """(rot1, trans, rot2) that takes odometry pose ``previous`` to ``current``."""
+        dx, dy = current[0] - previous[0], current[1] - previous[1]
+        trans = math.hypot(dx, dy)
+        rot1 = float(wrap(math.atan2(dy, dx) - previous[2])) if trans > 1e-9 else 0.0
+        rot2 = float(wrap(current[2] - previous[2] - rot1))
+        return np.array([rot1, trans, rot2])
+
+    @staticmethod
+    def move(pose: np.ndarray, u: np.ndarray) -> np.ndarray:
+        rot1, trans, rot2 = u
+        heading = pose[2] + rot1
+        return np.array([pose[0] + trans * math.cos(heading), pose[1] + trans * math.sin(heading),
+                         float(wrap(heading + rot2))])
+
+    @staticmethod
+    def jacobians(pose: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """G = d move / d pose and V = d move / d control."""
+        rot1, trans, _ = u
+        heading = pose[2] + rot1
+        s, c = math.sin(heading), math.cos(heading)
+        g = np.array([[1.0, 0.0, -trans * s], [0.0, 1.0, trans * c], [0.0, 0.0, 1.0]])
+        v = np.array([[-trans * s, c, 0.0], [trans * c, s, 0.0], [1.0, 0.0, 1.0]])
+        return g, v
+
+    def control_noise(self, u: np.ndarray) -> np.ndarray:
+        a1, a2, a3, a4 = self.alphas
+        rot1, trans, rot2 = np.abs(u)
+        return np.diag([a1 * rot1 ** 2 + a2 * trans ** 2 + 1e-8,
+                        a3 * trans ** 2 + a4 * (rot1 ** 2 + rot2 ** 2) + 1e-8,
+                        a1 * rot2 ** 2 + a2 * trans ** 2 + 1e-8])
+
+
+@dataclass(frozen=True)
+class VelocityModel:
+    """Velocity control (v, w) held for dt seconds along a circular arc; alphas scale the control noise.
+
+    The noise is a rate (per second), so the pose uncertainty grows with time and not with the odometry rate.
+    """
+
+    alphas: tuple[float, float, float, float] = (0.1, 0.01, 0.01, 0.1)
+
+    @staticmethod
+    def move(pose: np.ndarray, u: np.ndarray) -> np.ndarray:
+        v, w, dt = u
+        theta = pose[2]
+        if abs(w) < 1e-9:
+            return np.array([pose[0] + v * dt * math.cos(theta), pose[1] + v * dt * math.sin(theta), theta])
+        r = v / w
+        return np.array([pose[0] - r * math.sin(theta) + r * math.sin(theta + w * dt),
+                         pose[1] + r * math.cos(theta) - r * math.cos(theta + w * dt),
+                         float(wrap(theta + w * dt))])
+
+    @staticmethod
+    def jacobians(pose: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """G = d move / d pose and V = d move / d (v, w)."""
+        v, w, dt = u
+        theta = pose[2]
+        s, c = math.sin(theta), math.cos(theta)
+        if abs(w) < 1e-9:
+            g = np.array([[1.0, 0.0, -v * dt * s], [0.0, 1.0, v * dt * c], [0.0, 0.0, 1.0]])
+            vj = np.array([[dt * c, -0.5 * v * dt ** 2 * s], [dt * s, 0.5 * v * dt ** 2 * c], [0.0, dt]])
+            return g, vj
+        s2, c2 = math.sin(theta + w * dt), math.cos(theta + w * dt)
+        g = np.array([[1.0, 0.0, v / w * (-c + c2)], [0.0, 1.0, v / w * (-s + s2)], [0.0, 0.0, 1.0]])
+        vj = np.array([[(-s + s2) / w, v * (s - s2) / w ** 2 + v * c2 * dt / w],
+                       [(c - c2) / w, -v * (c - c2) / w ** 2 + v * s2 * dt / w],
+                       [0.0, dt]])
+        return g, vj
+
+    def control_noise(self, u: np.ndarray) -> np.ndarray:
+        a1, a2, a3, a4 = self.alphas
+        v, w, dt = np.abs(u)
+        per_second = 1.0 / max(dt, 1e-3)
+        return np.diag([a1 * v ** 2 + a2 * w ** 2 + 1e-8, a3 * v ** 2 + a4 * w ** 2 + 1e-8]) * per_second

@@ -1,0 +1,250 @@
+"""The naoslam back ends: Jacobians, consistency, variants, localisation, the simulator and the UTIAS loader."""
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from naoslam import observation
+from naoslam.ekf_slam import EkfSlam, SlamConfig
+from naoslam.localisation import EifLocalisation, EkfLocalisation
+from naoslam.logs import load_optitrack, load_utias
+from naoslam.measurement import Measurement
+from naoslam.metrics import align_se2
+from naoslam.motion import OdometryModel, VelocityModel, wrap
+from naoslam.runner import Event, merge_frames, run_slam, walk_sequence
+from naoslam.sim import SimConfig, simulate
+
+from tests.conftest import SHARED
+
+NOISE_FREE = dict(false_positive_rate=0.0, miss_rate=0.0, range_rel_std=0.0, bearing_std_deg=0.0, stride_scale=1.0,
+                  turn_bias=0.0, odometry_noise=(0.0, 0.0))
+
+
+def _numeric_jacobian(f, x, eps=1e-6):
+    x = np.asarray(x, float)
+    columns = []
+    for i in range(len(x)):
+        step = np.zeros_like(x)
+        step[i] = eps
+        diff = np.asarray(f(x + step)) - np.asarray(f(x - step))
+        if len(diff) == 3:
+            diff[2] = wrap(diff[2])
+        elif len(diff) == 2 and f.__name__ == "measure":
+            diff[1] = wrap(diff[1])
+        columns.append(diff / (2 * eps))
+    return np.stack(columns, axis=1)
+
+
+@pytest.mark.parametrize("model, u", [(OdometryModel(), np.array([0.3, 0.2, -0.1])),
+                                      (VelocityModel(), np.array([0.2, 0.4, 0.5])),
+                                      (VelocityModel(), np.array([0.2, 0.0, 0.5]))])
+def test_motion_jacobians_match_finite_differences(model, u):
+    pose = np.array([0.4, -1.2, 2.9])
+    g, v = model.jacobians(pose, u)
+    assert np.allclose(g, _numeric_jacobian(lambda p: model.move(p, u), pose), atol=1e-5)
+    controls = (lambda c: model.move(pose, c)) if isinstance(model, OdometryModel) else \
+        (lambda c: model.move(pose, np.r_[c, u[2]]))
+    assert np.allclose(v, _numeric_jacobian(controls, u if isinstance(model, OdometryModel) else u[:2]), atol=1e-4)
+
+
+def test_observation_jacobians_and_inverse_match_finite_differences():
+    pose, landmark = np.array([1.0, 0.5, 3.0]), np.array([-2.0, 2.2])
+
+    def measure(x):
+        return observation.expected(x[:3], x[3:])
+
+    numeric = _numeric_jacobian(measure, np.r_[pose, landmark])
+    h_pose, h_landmark = observation.jacobians(pose, landmark)
+    assert np.allclose(np.hstack([h_pose, h_landmark]), numeric, atol=1e-5)
+    z = observation.expected(pose, landmark)
+    position, j_pose, j_z = observation.landmark_from(pose, z)
+    assert np.allclose(position, landmark)
+    assert np.allclose(j_pose, _numeric_jacobian(lambda p: observation.landmark_from(p, z)[0], pose), atol=1e-5)
+    assert np.allclose(j_z, _numeric_jacobian(lambda zz: observation.landmark_from(pose, zz)[0], z), atol=1e-5)
+
+
+def test_odometry_control_reproduces_the_move():
+    a, b = np.array([0.2, -0.4, 0.3]), np.array([0.9, 0.1, -2.8])
+    assert np.allclose(OdometryModel.move(a, OdometryModel.control(a, b)), b)
+
+
+@pytest.mark.parametrize("config", [SlamConfig(), SlamConfig(fej=True), SlamConfig(outlier_filter=True),
+                                    SlamConfig(gate=9.21), SlamConfig(min_views=3),
+                                    SlamConfig(fej=True, gate=9.21, min_views=5)])
+def test_every_back_end_converges_to_the_truth_without_noise(config):
+    walk = simulate(SimConfig(seed=3, **NOISE_FREE))
+    metrics = run_slam(walk_sequence(walk), config).metrics()
+    assert metrics["robot_error"]["mean"] < 1e-6
+    assert metrics["landmark_error"]["mean"] < 1e-6 and metrics["landmark_error"]["mapped"] == 6
+
+
+def test_covariance_stays_symmetric_positive_definite_on_a_long_run():
+    walk = simulate(SimConfig(duration_s=300, seed=5))
+    slam = EkfSlam(walk.steps[0].true_pose, np.eye(3) * 1e-4, OdometryModel(), SlamConfig(fej=True, gate=9.21))
+    for previous, step in zip(walk.steps, walk.steps[1:]):
+        slam.predict(OdometryModel.control(previous.odometry_pose, step.odometry_pose))
+        if step.measurements:
+            slam.update(step.measurements)
+    assert np.array_equal(slam.sigma, slam.sigma.T)
+    assert np.linalg.eigvalsh(slam.sigma).min() > 0
+    assert len(slam.slots) == 6
+
+
+def test_fej_and_classic_agree_while_their_linearisation_points_coincide():
+    """Until the first correction of a mapped landmark, FEJ's points equal the current estimates."""
+    walk = simulate(SimConfig(seed=2, false_positive_rate=0.0))
+    sequence = walk_sequence(walk)
+    first_correction = None
+    seen: set[str] = set()
+    for i, event in enumerate(sequence.events):
+        for m in event.measurements or []:
+            if m.signature in seen and first_correction is None:
+                first_correction = i
+            seen.add(m.signature)
+    assert first_correction and first_correction > 1
+    head = replace(sequence, events=sequence.events[:first_correction + 1])
+    classic, fej = run_slam(head, SlamConfig()), run_slam(head, SlamConfig(fej=True))
+    assert np.allclose(classic.poses, fej.poses, atol=1e-12)
+    longer = replace(sequence, events=sequence.events[:first_correction + 40])
+    assert not np.allclose(run_slam(longer, SlamConfig()).poses, run_slam(longer, SlamConfig(fej=True)).poses)
+
+
+def _mapped_slam(config: SlamConfig) -> EkfSlam:
+    slam = EkfSlam(np.zeros(3), np.eye(3) * 1e-4, OdometryModel(), config)
+    slam.update([Measurement(2.0, 0.1, "bp", 1.0, 0.05, 0.02)])
+    return slam
+
+
+@pytest.mark.parametrize("config", [SlamConfig(outlier_filter=True), SlamConfig(gate=9.21)])
+def test_outlier_filter_and_gate_reject_a_false_positive(config):
+    slam = _mapped_slam(config)
+    before = slam.mu.copy()
+    log = slam.update([Measurement(3.5, -0.6, "bp", 0.9, 0.1, 0.03)])  # 1.5 m and 40 deg off the prediction
+    assert log.rejected == ["bp"] and np.array_equal(slam.mu, before)
+    assert slam.update([Measurement(2.02, 0.11, "bp", 0.9, 0.05, 0.02)]).accepted == ["bp"]
+    unfiltered = _mapped_slam(SlamConfig())
+    assert unfiltered.update([Measurement(3.5, -0.6, "bp", 0.9, 0.1, 0.03)]).accepted == ["bp"]
+
+
+@pytest.mark.parametrize("n", [3, 5])
+def test_minimal_view_delays_initialisation_by_exactly_n_sightings(n):
+    slam = EkfSlam(np.zeros(3), np.eye(3) * 1e-4, OdometryModel(), SlamConfig(min_views=n))
+    for sighting in range(1, n + 1):
+        log = slam.update([Measurement(2.0 + 0.01 * sighting, 0.1, "py", 1.0, 0.05, 0.02)])
+        assert ("py" in slam.slots) == (sighting == n)
+        assert log.initialised == (["py"] if sighting == n else []) and log.pending == ([] if sighting == n else ["py"])
+    # A sighting far from the others restarts the count.
+    slam = EkfSlam(np.zeros(3), np.eye(3) * 1e-4, OdometryModel(), SlamConfig(min_views=3))
+    for r in (2.0, 2.0, 4.0, 4.0):
+        slam.update([Measurement(r, 0.1, "gp", 1.0, 0.05, 0.02)])
+    assert "gp" not in slam.slots
+
+
+def test_fej_is_more_consistent_than_classic_on_a_monte_carlo_run():
+    """Huang et al.: the classic EKF's Jacobians gain spurious information, so its NEES exceeds FEJ's."""
+    classic, fej = [], []
+    for seed in range(8):
+        sequence = walk_sequence(simulate(SimConfig(seed=seed, duration_s=90, false_positive_rate=0.0, miss_rate=0.0)))
+        classic.append(run_slam(sequence, SlamConfig()).metrics()["nees"]["mean"])
+        fej.append(run_slam(sequence, SlamConfig(fej=True)).metrics()["nees"]["mean"])
+    assert np.mean(fej) < np.mean(classic)
+
+
+def test_odometry_drift_is_like_the_thesis():
+    errors = [run_slam(walk_sequence(simulate(SimConfig(seed=s)))).metrics()["odometry_error"]["mean"]
+              for s in range(6)]
+    assert 0.3 < np.mean(errors) < 0.7
+
+
+@pytest.mark.parametrize("filter_class", [EkfLocalisation, EifLocalisation])
+def test_localisation_on_a_known_map_tracks_the_circle(filter_class):
+    walk = simulate(SimConfig(path="circle", seed=4, false_positive_rate=0.2))
+    start = walk.steps[0].true_pose
+    localiser = filter_class(start, np.eye(3) * 1e-3, walk.landmarks, OdometryModel())
+    errors, odometry_errors = [], []
+    for previous, step in zip(walk.steps, walk.steps[1:]):
+        localiser.predict(OdometryModel.control(previous.odometry_pose, step.odometry_pose))
+        if step.measurements:
+            localiser.update(step.measurements)
+        errors.append(np.linalg.norm(localiser.pose[:2] - step.true_pose[:2]))
+        odometry_errors.append(np.linalg.norm(step.odometry_pose[:2] - step.true_pose[:2]))
+    assert np.mean(errors) < 0.3 < np.mean(odometry_errors)
+
+
+def test_ekf_and_eif_agree_on_one_linear_step():
+    landmarks = {"bp": (3.0, 1.0)}
+    ekf = EkfLocalisation(np.zeros(3), np.eye(3) * 0.01, landmarks, OdometryModel(), gate=None)
+    eif = EifLocalisation(np.zeros(3), np.eye(3) * 0.01, landmarks, OdometryModel(), gate=None)
+    z = [Measurement(3.1, 0.33, "bp", 1.0, 0.05, 0.02)]
+    for f in (ekf, eif):
+        f.predict(np.array([0.0, 0.1, 0.0]))
+        f.update(z)
+    assert np.allclose(ekf.pose, eif.pose, atol=1e-9)
+    assert np.allclose(np.linalg.inv(eif.omega), ekf.sigma, atol=1e-9)
+
+
+def test_frames_merge_in_time_order_with_the_offset():
+    controls = [Event(t, np.zeros(3)) for t in (0.0, 0.1, 0.2, 0.3)]
+    frames = [Event(0.0, measurements=[]), Event(0.1, measurements=[])]
+    merged = merge_frames(controls, frames, time_offset_s=0.15)
+    assert [(e.t, e.measurements is not None) for e in merged] == [
+        (0.0, False), (0.1, False), (0.15, True), (0.2, False), (0.25, True), (0.3, False)]
+
+
+def test_se2_alignment_undoes_a_rigid_motion():
+    rng = np.random.default_rng(0)
+    truth = rng.uniform(-5, 5, (6, 2))
+    angle = 0.7
+    rotation = np.array([[math.cos(angle), -math.sin(angle)], [math.sin(angle), math.cos(angle)]])
+    moved = truth @ rotation.T + [1.5, -2.0]
+    assert np.allclose(align_se2(moved, truth), truth)
+
+
+def test_utias_loader_parses_the_shared_log():
+    folder = SHARED / "utias-mrclam" / "dataset0"
+    if not folder.is_dir():
+        pytest.skip("../shared/utias-mrclam is not on this machine")
+    sequence = load_utias(folder, duration_s=120)
+    frames = [e for e in sequence.events if e.measurements]
+    assert len(sequence.landmarks_truth) == 15 and frames
+    assert all(m.signature in sequence.landmarks_truth for e in frames for m in e.measurements)
+    assert all(a.t <= b.t for a, b in zip(sequence.events, sequence.events[1:]))
+    metrics = run_slam(sequence, SlamConfig(gate=9.21)).metrics()
+    assert "robot_error" not in metrics and metrics["landmark_error"]["aligned"]
+
+
+def test_utias_loader_names_a_bad_line(tmp_path):
+    for name in ("Odometry.dat", "Barcodes.dat", "Landmark_Groundtruth.dat"):
+        (tmp_path / name).write_text("# header\n1 2 3\n")
+    (tmp_path / "Measurement.dat").write_text("# header\n1.0 5 far 0.1\n")
+    with pytest.raises(ValueError, match=r"Measurement.dat:2"):
+        load_utias(tmp_path)
+
+
+def test_optitrack_reader_gives_planar_pose(tmp_path):
+    csv = tmp_path / "take.csv"
+    s = math.sin(math.radians(30) / 2)
+    c = math.cos(math.radians(30) / 2)
+    csv.write_text("Format Version,1.23\n\n"
+                   ",,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body\n"
+                   ",,NAO,NAO,NAO,NAO,NAO,NAO,NAO\n"
+                   ",,1,1,1,1,1,1,1\n"
+                   ",,Rotation,Rotation,Rotation,Rotation,Position,Position,Position\n"
+                   "Frame,Time (Seconds),X,Y,Z,W,X,Y,Z\n"
+                   f"0,0.0,0,{s},0,{c},1.0,0.3,-2.0\n")
+    rows = load_optitrack(csv)
+    assert rows.shape == (1, 4) and np.allclose(rows[0, :3], [0.0, 1.0, 2.0])
+    assert math.degrees(rows[0, 3]) == pytest.approx(30.0)
+
+
+def test_runtime_imports_no_training_libraries():
+    code = ("import sys, naoslam.ekf_slam, naoslam.localisation, naoslam.sim, naoslam.logs, naoslam.runner, "
+            "naoslam.colour_filter, naoslam.measurement; "
+            "bad = [m for m in ('torch', 'ultralytics', 'albumentations', 'detector') if m in sys.modules]; "
+            "sys.exit(1 if bad else 0)")
+    assert subprocess.run([sys.executable, "-c", code]).returncode == 0
