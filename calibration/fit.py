@@ -36,8 +36,8 @@ def fit_power_law(px: np.ndarray, range_m: np.ndarray) -> tuple[PowerLaw, float]
     """Least squares of log(range) on log(px); returns the law (with residual std) and R^2."""
     px, range_m = np.asarray(px, float), np.asarray(range_m, float)
     keep = (px > 0) & (range_m > 0)
-    if keep.sum() < 2 or np.ptp(np.log(px[keep])) == 0:
-        raise ValueError("a power law needs at least two poles of different pixel size")
+    if keep.sum() < 2 or len(np.unique(np.round(range_m[keep], 3))) < 2:
+        raise ValueError("a power law needs poles at two or more different ranges")
     x, y = np.log(px[keep]), np.log(range_m[keep])
     b, log_a = np.polyfit(x, y, 1)
     residual = y - (log_a + b * x)
@@ -63,7 +63,7 @@ def calibrate(samples: list[SizeSample], geometry: PoleGeometry = PoleGeometry()
     reference_width = samples[0].image_width
     columns = as_arrays(samples, reference_width)
     whole = ~columns["partial"]
-    if whole.sum() < 2:
+    if len(np.unique(np.round(columns["range"][whole], 3))) < 2:  # too few whole poles: use every pole
         whole = np.ones_like(whole)
     width_fit = fit_law(columns["width"], columns["range"])
     height_fit = fit_law(columns["height"][whole], columns["range"][whole])

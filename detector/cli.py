@@ -84,6 +84,7 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--model", default="yolov8s-seg", help="yolov8n-seg, yolov8s-seg (default) or yolov8m-seg")
     train.add_argument("--weights", type=Path, help="local checkpoint to fine-tune from (default: train from scratch)")
     train.add_argument("--epochs", type=int, default=100)
+    train.add_argument("--time", type=float, help="train for this many hours instead (Ultralytics fits the epochs)")
     train.add_argument("--imgsz", type=int, default=640, help="training image size (default 640)")
     train.add_argument("--batch", type=int, default=8)
     train.add_argument("--patience", type=int, default=50, help="stop after this many epochs without improvement")
@@ -149,9 +150,10 @@ def build_parser() -> argparse.ArgumentParser:
                       help="also run every back end on SEEDS seeds and print the comparison table")
     slam.add_argument("--out", type=Path, required=True)
 
-    demo = sub.add_parser("demo", help="run the whole pipeline on a synthetic dataset")
+    demo = sub.add_parser("demo", help="run the whole pipeline on a synthetic dataset and write report.html")
     demo.add_argument("--out", type=Path, default=Path("runs/demo"))
-    demo.add_argument("--images", type=int, default=300)
+    demo.add_argument("--budget", choices=("fast", "full"), default="fast",
+                      help="fast: about 15 minutes on two cores (default); full: the thesis's settings (days)")
     demo.add_argument("--seed", type=int, default=0)
 
     return parser
@@ -267,7 +269,7 @@ def _train(args: argparse.Namespace) -> int:
 
     settings = TrainSettings(model=args.model, epochs=args.epochs, imgsz=args.imgsz, batch=args.batch,
                              patience=args.patience, seed=args.seed, threads=args.threads, workers=args.workers,
-                             cache=not args.no_cache)
+                             cache=not args.no_cache, time_hours=args.time)
     run = train_model(args.data, args.out, settings, weights=args.weights, resume=args.resume)
     best = summarise_run(run)
     print(f"best epoch {best['best_epoch']} of {best['epochs']} (validation): mask mAP50 {best['mAP50(M)']:.3f}, "
@@ -310,11 +312,9 @@ def _evaluate(args: argparse.Namespace) -> int:
 
 
 def _demo(args: argparse.Namespace) -> int:
-    """Until the full demo lands: render a dataset with a preview, then check it."""
-    if _synth(argparse.Namespace(out=args.out / "data", images=args.images, seed=args.seed, size=(640, 480), hfov=56.3,
-                                 calibration_shots=False, preview=True, workers=None, force=True)):
-        return 1
-    return _check(argparse.Namespace(data=args.out / "data", fix=False, out=None, notes=False, force=False))
+    from detector.demo.pipeline import BUDGETS, run_demo
+
+    return run_demo(args.out, BUDGETS[args.budget], args.seed)
 
 
 COMMANDS = {"synth": _synth, "check": _check, "convert": _convert, "augment": _augment, "split": _split,

@@ -34,6 +34,7 @@ class TrainSettings:
     threads: int | None = None
     workers: int = 0
     cache: bool = True
+    time_hours: float | None = None
 
     def __post_init__(self) -> None:
         if self.model not in MODELS:
@@ -41,6 +42,8 @@ class TrainSettings:
         for name in ("epochs", "imgsz", "batch"):
             if getattr(self, name) < 1:
                 raise ValueError(f"--{name} must be at least 1 (got {getattr(self, name)})")
+        if self.time_hours is not None and self.time_hours <= 0:
+            raise ValueError(f"--time {self.time_hours} must be a positive number of hours")
         if self.imgsz % 32:
             raise ValueError(f"--imgsz {self.imgsz} is not a multiple of the model stride 32 (try {self.imgsz // 32 * 32 or 32})")
 
@@ -82,6 +85,7 @@ def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | 
         options = asdict(settings)
         for name in ("model", "threads"):
             options.pop(name)
+        options["time"] = options.pop("time_hours")
         model.train(data=str(data_yaml.resolve()), project=str(out.parent), name=out.name, exist_ok=True, device="cpu",
                     amp=False, plots=False, deterministic=True, trainer=CpuSegmentationTrainer,
                     **options)

@@ -79,9 +79,10 @@ def totals(images: list[ImageEvaluation], conf: float) -> dict[str, int]:
 
 
 def precision_recall(counts: dict[str, int]) -> tuple[float, float, float]:
-    """Precision, recall and F1 from counts (1.0 where nothing could be wrong)."""
+    """Precision, recall and F1 from counts. With no detections, precision is 1 only if there was nothing to find;
+    with no labels, recall is 1."""
     tp, fp, fn = counts["tp"], counts["fp"], counts["fn"]
-    precision = tp / (tp + fp) if tp + fp else 1.0
+    precision = tp / (tp + fp) if tp + fp else float(fn == 0)
     recall = tp / (tp + fn) if tp + fn else 1.0
     f1 = 2 * precision * recall / (precision + recall) if precision + recall else 0.0
     return precision, recall, f1

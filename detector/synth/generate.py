@@ -1,7 +1,6 @@
 """``poles synth``: render an annotated dataset in the Roboflow layout, in parallel and reproducibly."""
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -76,8 +75,9 @@ def render_one(job: SynthJob, index: int) -> RenderedSample:
     rng = np.random.default_rng([job.seed, index])
     camera = job.camera
     if job.calibration_shots:
-        grid = list(itertools.product(CALIBRATION_RANGES_M, CALIBRATION_ANGLES_DEG))
-        range_m, angle = grid[index % len(grid)]
+        # Ranges vary fastest, so any number of shots covers every distance.
+        range_m = CALIBRATION_RANGES_M[index % len(CALIBRATION_RANGES_M)]
+        angle = CALIBRATION_ANGLES_DEG[(index // len(CALIBRATION_RANGES_M)) % len(CALIBRATION_ANGLES_DEG)]
         scene = calibration_scene(rng, camera, CLASSES[index % len(CLASSES)], range_m, angle, job.config)
     else:
         scene = sample_scene(rng, camera, job.config)

@@ -1,0 +1,1 @@
+"""`poles demo`: the whole pipeline, stage by stage, on the embedded synthetic default."""

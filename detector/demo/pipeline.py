@@ -1,0 +1,243 @@
+"""``poles demo``: the whole pipeline on the embedded synthetic default, stage by stage, resumable, with a report.
+
+data -> check -> augment -> train -> export (FP32 + INT8) -> calibrate -> evaluate (model, INT8, colour filter)
+-> slam (image-level walk through the exported model, the colour filter, and the back-end table) -> report.
+"""
+from __future__ import annotations
+
+import shutil
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from rich.console import Console
+from rich.table import Table
+
+from detector.demo.stages import StageLedger, StageFailed, stage_key
+
+console = Console()
+
+
+@dataclass(frozen=True)
+class Budget:
+    """How much work each stage does. ``train_hours`` caps training time (Ultralytics fits the epochs to it)."""
+
+    name: str
+    images: int
+    copies: int
+    models: tuple[str, ...]
+    imgsz: int
+    epochs: int
+    train_hours: float | None
+    batch: int
+    export_hw: tuple[int, int]
+    calibration_shots: int
+    walk_seconds: float
+    compare_seeds: int
+    conf: float
+
+
+BUDGETS = {
+    # About 15 minutes on two cores: a YOLOv8n at 320 px for a fixed 8.5 minutes of training.
+    "fast": Budget("fast", images=300, copies=7, models=("yolov8n-seg",), imgsz=320, epochs=100, train_hours=0.14,
+                   batch=16, export_hw=(256, 320), calibration_shots=90, walk_seconds=60.0, compare_seeds=3,
+                   conf=0.5),
+    # The thesis's settings: YOLOv8s and YOLOv8m at 640 px for 200 epochs (days on a laptop CPU).
+    "full": Budget("full", images=1000, copies=7, models=("yolov8s-seg", "yolov8m-seg"), imgsz=640, epochs=200,
+                   train_hours=None, batch=8, export_hw=(480, 640), calibration_shots=270, walk_seconds=60.0,
+                   compare_seeds=10, conf=0.85),
+}
+
+
+def run_demo(out: Path, budget: Budget, seed: int = 0) -> int:
+    """Run every stage into ``out``; returns a process exit code."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    ledger = StageLedger(out, announce=lambda text: console.rule(f"[bold]{text}", align="left"))
+    console.print(f"[bold]poles demo[/bold] ({budget.name} budget) into {out}: "
+                  "data, check, augment, train, export, calibrate, evaluate, slam, report")
+    try:
+        results = _stages(ledger, out, budget, seed)
+    except StageFailed as failure:
+        console.print(f"[bold red]{failure}")
+        _print_timings(ledger)
+        return 1
+    _print_timings(ledger)
+    _print_headlines(results)
+    console.print(f"report: {results['report']['html']}")
+    return 0
+
+
+def _stages(ledger: StageLedger, out: Path, budget: Budget, seed: int) -> dict:
+    from augment.run import augment_dataset
+    from detector.datasets.check import check_dataset
+    from detector.synth.generate import SynthJob, generate_dataset
+
+    data, augmented = out / "data", out / "augmented"
+    results: dict = {"budget": asdict(budget)}
+    key = stage_key(images=budget.images, seed=seed)
+    results["data"] = ledger.run("data", key, [data / "data.yaml"], lambda: _dataset_summary(
+        generate_dataset(data, SynthJob(budget.images, seed), preview=True, force=True)))
+    key = stage_key(data=key)
+
+    def check() -> dict:
+        report = check_dataset(data)
+        if report.errors:
+            raise ValueError(f"{data}: {len(report.errors)} error(s); run `poles check {data}`")
+        return {"errors": 0, "warnings": sum(p.severity == "warning" for p in report.problems)}
+
+    results["check"] = ledger.run("check", key, [], check)
+    key = stage_key(data=key, copies=budget.copies, seed=seed)
+    results["augment"] = ledger.run("augment", key, [augmented / "data.yaml"], lambda: augment_dataset(
+        data, augmented, copies=budget.copies, seed=seed, preview=True, force=True))
+    models = {}
+    for model in budget.models:
+        train_key = stage_key(data=key, model=model, imgsz=budget.imgsz, epochs=budget.epochs,
+                              hours=budget.train_hours, batch=budget.batch, seed=seed)
+        run = out / "train" / model
+        results[f"train {model}"] = ledger.run(f"train {model}", train_key, [run / "weights" / "best.pt"],
+                                               lambda: _train(ledger, f"train {model}", train_key, augmented, run,
+                                                              model, budget, seed))
+        export_key = stage_key(train=train_key, hw=budget.export_hw)
+        onnx = out / "models" / f"{model}.onnx"
+        results[f"export {model}"] = ledger.run(f"export {model}", export_key, [onnx], lambda: _export(
+            run / "weights" / "best.pt", onnx, budget, data))
+        models[model] = (onnx, export_key)
+    calibration_key = stage_key(models=[k for _, k in models.values()], shots=budget.calibration_shots, seed=seed)
+    results["calibrate"] = ledger.run("calibrate", calibration_key, [out / "calibration" / "calibration.json"],
+                                      lambda: _calibrate(out / "calibration", [p for p, _ in models.values()],
+                                                         budget, seed))
+    evaluate_key = stage_key(calibration=calibration_key, conf=budget.conf)
+    results["evaluate"] = ledger.run("evaluate", evaluate_key, [out / "evaluation" / "summary.json"],
+                                     lambda: _evaluate(out / "evaluation", [p for p, _ in models.values()], data,
+                                                       out / "calibration" / "calibration.json", budget))
+    slam_key = stage_key(evaluate=evaluate_key, walk=budget.walk_seconds, seeds=budget.compare_seeds, seed=seed)
+    best_model = next(iter(models.values()))[0]
+    results["slam"] = ledger.run("slam", slam_key, [out / "slam" / "summary.json"], lambda: _slam(
+        out / "slam", best_model, out / "calibration" / "calibration.json", budget, seed))
+    from detector.demo.report import write_report
+
+    results["report"] = {"html": str(write_report(out, results, ledger.timings()))}
+    return results
+
+
+def _dataset_summary(root: Path) -> dict:
+    from detector.datasets import load_dataset
+
+    dataset = load_dataset(root)
+    counts = {split: len(dataset.split(split)) for split in ("train", "valid", "test")}
+    poles = sum(len(s.instances) for s in dataset.samples)
+    return {"images": len(dataset.samples), **counts, "poles": poles,
+            "empty": sum(1 for s in dataset.samples if not s.instances), "preview": str(root / "preview.png")}
+
+
+def _train(ledger: StageLedger, name: str, key: str, data: Path, run: Path, model: str, budget: Budget,
+           seed: int) -> dict:
+    """Train, resuming an interrupted run of the same stage; a run left by other settings is started afresh."""
+    from detector.training import TrainSettings, summarise_run, train_model
+
+    previous = ledger.previous(name)
+    resume = bool(previous and previous.key == key and (run / "weights" / "last.pt").is_file())
+    if run.exists() and not resume:
+        shutil.rmtree(run)
+    settings = TrainSettings(model=model, epochs=budget.epochs, imgsz=budget.imgsz, batch=budget.batch,
+                             patience=max(budget.epochs // 4, 10), seed=seed, time_hours=budget.train_hours)
+    train_model(data, run, settings, resume=resume)
+    return {**summarise_run(run), "model": model, "imgsz": budget.imgsz, "curves": str(run / "training_curves.png"),
+            "weights": str(run / "weights" / "best.pt")}
+
+
+def _export(weights: Path, onnx: Path, budget: Budget, data: Path) -> dict:
+    from export.run import ExportJob, run_export
+
+    report = run_export(ExportJob(weights, onnx, budget.export_hw, data, int8=True, force=True))
+    if report["int8_problems"]:
+        console.print(f"[yellow]INT8 copy differs from FP32: {'; '.join(report['int8_problems'])}")
+    return report
+
+
+def _calibrate(folder: Path, models: list[Path], budget: Budget, seed: int) -> dict:
+    from calibration.run import embed_calibration, load_calibration, run_calibration
+    from detector.synth.generate import SynthJob, generate_dataset
+
+    shots = generate_dataset(folder / "shots", SynthJob(budget.calibration_shots, seed + 1, calibration_shots=True),
+                             force=True)
+    result = run_calibration(shots, folder / "calibration.json", plot=folder / "fit.png", force=True)
+    calibration = load_calibration(folder / "calibration.json")
+    for model in models:
+        for path in (model, model.with_name(f"{model.stem}-int8.onnx")):
+            embed_calibration(path, calibration)
+    return {**result["report"], "plot": str(folder / "fit.png")}
+
+
+def _evaluate(folder: Path, models: list[Path], data: Path, calibration_json: Path, budget: Budget) -> dict:
+    from calibration.run import load_calibration
+    from detector.evaluation.predictors import make_predictor
+    from detector.evaluation.run import evaluate
+    from naoslam.atomic import write_json
+
+    calibration = load_calibration(calibration_json)
+    rows = []
+    candidates = [str(p) for m in models for p in (m, m.with_name(f"{m.stem}-int8.onnx"))] + ["colour-filter"]
+    for model in candidates:
+        predictor = make_predictor(model, calibration=calibration)
+        metrics = evaluate(predictor, data, folder / predictor.name, "test", budget.conf)
+        rows.append({k: v for k, v in metrics.items() if k not in ("sweep", "per_image")}
+                    | {"folder": str(folder / predictor.name)})
+    write_json(folder / "summary.json", rows)
+    return {"rows": rows}
+
+
+def _slam(folder: Path, model: Path, calibration_json: Path, budget: Budget, seed: int) -> dict:
+    from calibration.run import load_calibration
+    from detector.slam_run import BACKENDS, FrontEnd, compare_backends, sim_sequence, write_outputs
+    from naoslam.atomic import write_json
+    from naoslam.ekf_slam import SlamConfig
+    from naoslam.observation import CHI2_2DOF_99
+    from naoslam.runner import run_slam
+    from naoslam.sim import SimConfig
+
+    calibration = load_calibration(calibration_json)
+    sim = SimConfig(duration_s=budget.walk_seconds, seed=seed)
+    chosen = SlamConfig(fej=True, gate=CHI2_2DOF_99, min_views=3)
+    summary: dict = {"backend": chosen.label}
+    tables = {}
+    for name, front_end in (("model", FrontEnd(str(model), calibration, budget.conf)),
+                            ("colour filter", FrontEnd("colour-filter", calibration, budget.conf))):
+        sequence = sim_sequence(sim, front_end)
+        metrics = write_outputs(run_slam(sequence, chosen), sequence, folder / name.replace(" ", "-"))
+        summary[name] = {"metrics": metrics, "map": str(folder / name.replace(" ", "-") / "map.png"),
+                         "errors": str(folder / name.replace(" ", "-") / "errors.png"),
+                         "measurements": sum(len(e.measurements or []) for e in sequence.events)}
+        tables[f"image-level sim, {name}"] = compare_backends(lambda s, seq=sequence: seq, [seed], BACKENDS)
+    tables["measurement-level sim"] = compare_backends(
+        lambda s: sim_sequence(SimConfig(duration_s=budget.walk_seconds, seed=s)), list(range(budget.compare_seeds)))
+    summary["tables"] = tables
+    write_json(folder / "summary.json", summary)
+    return summary
+
+
+def _print_timings(ledger: StageLedger) -> None:
+    table = Table(title="stages")
+    for column in ("stage", "status", "seconds"):
+        table.add_column(column)
+    for record in ledger.timings():
+        status = record.status if record.ran else f"{record.status} (skipped: up to date)"
+        table.add_row(record.name, status if not record.error else f"{status}: {record.error[:80]}",
+                      f"{record.seconds:.0f}")
+    console.print(table)
+
+
+def _print_headlines(results: dict) -> None:
+    table = Table(title="headline figures")
+    table.add_column("what")
+    table.add_column("figure")
+    for row in results["evaluate"]["rows"]:
+        table.add_row(f"{row['model']} on held-out synthetic frames",
+                      f"precision {100 * row['precision']:.1f} %, recall {100 * row['recall']:.1f} %"
+                      + (f", mask IoU {row['mean_iou']:.3f}" if row.get("mean_iou") is not None else ""))
+    for name in ("model", "colour filter"):
+        metrics = results["slam"][name]["metrics"]
+        figure = ", ".join(f"{k.replace('_', ' ')} {metrics[k]['mean']:.3f} m" for k in
+                           ("robot_error", "landmark_error", "odometry_error") if k in metrics)
+        table.add_row(f"SLAM ({results['slam']['backend']}) through the {name}", figure)
+    console.print(table)

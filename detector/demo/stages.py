@@ -1,0 +1,84 @@
+"""Resumable stages: each stage's inputs are hashed; a stage that finished with the same inputs is skipped.
+
+The ledger (``stages.json`` in the run folder) records per stage its key, status, time taken and a summary of
+what it produced. A failed stage is recorded with its error and stops the run; everything before it stays.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from naoslam.atomic import write_json
+
+
+class StageFailed(RuntimeError):
+    """A stage raised; the message names it and the cause."""
+
+
+@dataclass
+class StageRecord:
+    name: str
+    key: str
+    status: str
+    seconds: float
+    summary: dict[str, Any] = field(default_factory=dict)
+    error: str = ""
+    ran: bool = True
+
+
+def stage_key(**inputs: Any) -> str:
+    """Stable hash of a stage's inputs (settings, and the keys of the stages it reads from)."""
+    text = json.dumps(inputs, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+class StageLedger:
+    """Runs stages in order, skipping those already done with the same key."""
+
+    def __init__(self, folder: Path, announce: Callable[[str], None] = print):
+        self.folder = Path(folder)
+        self.path = self.folder / "stages.json"
+        self.announce = announce
+        self.records: dict[str, StageRecord] = {}
+        if self.path.is_file():
+            for name, data in json.loads(self.path.read_text()).items():
+                self.records[name] = StageRecord(**{**data, "ran": False})
+        self.order: list[str] = []
+
+    def previous(self, name: str) -> StageRecord | None:
+        return self.records.get(name)
+
+    def run(self, name: str, key: str, outputs: list[Path], work: Callable[[], dict]) -> dict:
+        """Run ``work`` unless stage ``name`` is recorded done with ``key`` and its outputs exist."""
+        self.order.append(name)
+        record = self.records.get(name)
+        if record and record.status == "done" and record.key == key and all(Path(p).exists() for p in outputs):
+            record.ran = False
+            self.announce(f"[{len(self.order)}] {name}: up to date, skipped (took {record.seconds:.0f} s before)")
+            return record.summary
+        self.announce(f"[{len(self.order)}] {name} ...")
+        start = time.perf_counter()
+        try:
+            summary = work()
+        except Exception as exc:
+            self.records[name] = StageRecord(name, key, "failed", time.perf_counter() - start,
+                                             error=f"{type(exc).__name__}: {exc}")
+            self._save()
+            raise StageFailed(f"stage {name!r} failed: {type(exc).__name__}: {exc}\n"
+                              f"Earlier stages are kept in {self.folder}; fix the cause and run again to resume.") from exc
+        self.records[name] = StageRecord(name, key, "done", time.perf_counter() - start, summary)
+        self._save()
+        return summary
+
+    def _save(self) -> None:
+        data = {name: {k: v for k, v in asdict(r).items() if k != "ran"} for name, r in self.records.items()}
+        write_json(self.path, data)
+
+    def timings(self) -> list[StageRecord]:
+        """Records of this run's stages, in order."""
+        return [self.records[name] for name in self.order if name in self.records]

@@ -1,0 +1,61 @@
+"""The demo: resumable stages, and the whole pipeline on a tiny budget producing a complete report."""
+from __future__ import annotations
+
+import json
+import re
+
+import pytest
+
+from detector.demo.pipeline import Budget, run_demo
+from detector.demo.stages import StageFailed, StageLedger, stage_key
+
+TINY = Budget("tiny", images=24, copies=1, models=("yolov8n-seg",), imgsz=64, epochs=1, train_hours=None, batch=8,
+              export_hw=(96, 128), calibration_shots=18, walk_seconds=8.0, compare_seeds=1, conf=0.05)
+
+
+def test_ledger_skips_done_stages_and_reruns_changed_ones(tmp_path):
+    calls = []
+    output = tmp_path / "out.txt"
+
+    def work():
+        calls.append(1)
+        output.write_text("x")
+        return {"n": len(calls)}
+
+    assert StageLedger(tmp_path).run("a", stage_key(x=1), [output], work) == {"n": 1}
+    assert StageLedger(tmp_path).run("a", stage_key(x=1), [output], work) == {"n": 1} and len(calls) == 1
+    assert StageLedger(tmp_path).run("a", stage_key(x=2), [output], work) == {"n": 2}
+    output.unlink()
+    assert StageLedger(tmp_path).run("a", stage_key(x=2), [output], work) == {"n": 3}
+
+
+def test_ledger_records_a_failure_and_keeps_earlier_stages(tmp_path):
+    ledger = StageLedger(tmp_path)
+    ledger.run("first", "k1", [], lambda: {"ok": True})
+    with pytest.raises(StageFailed, match=r"stage 'second' failed: ValueError: no frames"):
+        ledger.run("second", "k2", [], lambda: (_ for _ in ()).throw(ValueError("no frames")))
+    saved = json.loads((tmp_path / "stages.json").read_text())
+    assert saved["first"]["status"] == "done" and saved["second"]["status"] == "failed"
+    assert "no frames" in saved["second"]["error"]
+
+
+def test_demo_runs_every_stage_writes_the_report_and_resumes(tmp_path):
+    out = tmp_path / "demo"
+    assert run_demo(out, TINY) == 0
+    stages = json.loads((out / "stages.json").read_text())
+    assert list(stages) == ["data", "check", "augment", "train yolov8n-seg", "export yolov8n-seg", "calibrate",
+                            "evaluate", "slam"]
+    assert all(s["status"] == "done" for s in stages.values())
+    page = (out / "report.html").read_text()
+    for heading in ("Stages and time taken", "Dataset and augmentation", "Training", "Export and agreement",
+                    "Range calibration", "Evaluation on held-out frames", "EKF SLAM on a simulated walk"):
+        assert heading in page
+    assert len(re.findall(r'src="data:image/(?:png|jpeg);base64,', page)) >= 10
+    assert "not produced" not in page.split("Evaluation on held-out frames")[0]
+    evaluation = json.loads((out / "evaluation" / "summary.json").read_text())
+    assert [row["model"] for row in evaluation] == ["yolov8n-seg.onnx", "yolov8n-seg-int8.onnx", "colour-filter"]
+    # A second run finds every stage up to date and redoes nothing.
+    before = {k: v["seconds"] for k, v in stages.items()}
+    assert run_demo(out, TINY) == 0
+    after = json.loads((out / "stages.json").read_text())
+    assert {k: v["seconds"] for k, v in after.items()} == before
