@@ -1,7 +1,9 @@
 """Front-end latency per 640x480 frame against the bare forward pass and against Ultralytics' predict.
 
 Same ONNX file, same frames, runs interleaved in one process: (a) ``session.run`` on an already prepared tensor,
-(b) ``LandmarkDetector`` (prepare + run + decode + masks + rotated boxes), (c) Ultralytics ``YOLO(onnx).predict``.
+(b) ``LandmarkDetector`` (prepare + run + decode + masks + rotated boxes), (c) Ultralytics ``YOLO(onnx).predict``,
+and (d) the front end's own work alone (prepare + decode on stored network outputs), which is its overhead
+without the run-to-run noise of the forward pass.
 Models are built from their YAML (untrained); the confidence threshold is set per model so that a frame gives about
 five detections, as a frame full of poles would, so decoding and masks are paid for.
 Usage: python benchmarks/bench_frontend.py [FRAMES] [MODEL ...]
@@ -55,10 +57,16 @@ def bench(model: Path, frames: list[np.ndarray], repeats: int) -> dict[str, floa
     detector.conf = threshold_for(detector, frames, DETECTIONS_PER_FRAME)
     ultralytics = YOLO(str(model), task="segment")
     blobs = [detector.prepare(f)[0] for f in frames]
+    outputs = [detector.forward(b) for b in blobs]
+
+    def own_work(i: int) -> None:  # the front end's own share: preparation and decoding, without the forward pass
+        detector.decode(outputs[i], detector.prepare(frames[i])[1])
+
     runs = {"bare session.run": lambda i: detector.forward(blobs[i]),
             "front end": lambda i: detector(frames[i]),
             "ultralytics predict": lambda i: ultralytics.predict(frames[i], imgsz=[480, 640], conf=detector.conf,
-                                                                 verbose=False, retina_masks=True)}
+                                                                 verbose=False, retina_masks=True),
+            "own work": own_work}
     for run in runs.values():
         run(0)
     times: dict[str, list[float]] = {name: [] for name in runs}
@@ -68,7 +76,7 @@ def bench(model: Path, frames: list[np.ndarray], repeats: int) -> dict[str, floa
         # Interleaved in blocks (every frame once per method), the block order rotating each round. Ultralytics'
         # session keeps its threads spinning after a call, which slows whatever runs next; blocks confine that to
         # the first call of a block, and the median ignores it.
-        for name in names[repeat % 3:] + names[:repeat % 3]:
+        for name in names[repeat % len(names):] + names[:repeat % len(names)]:
             for i in range(len(frames)):
                 start = time.perf_counter()
                 runs[name](i)
@@ -96,8 +104,9 @@ def main(frame_count: int = 10, models: tuple[str, ...] = ("yolov8s-seg", "yolov
                 print(f"{model} {label}: bare session.run {r['bare session.run']:.1f} ms, front end "
                       f"{r['front end']:.1f} ms ({r['detections']:.1f} detections), Ultralytics predict "
                       f"{r['ultralytics predict']:.1f} ms | front end / bare = "
-                      f"{r['front end'] / r['bare session.run']:.3f}, Ultralytics / front end = "
-                      f"{r['ultralytics predict'] / r['front end']:.2f}", flush=True)
+                      f"{r['front end'] / r['bare session.run']:.3f} (own work {r['own work']:.2f} ms = "
+                      f"{100 * r['own work'] / r['bare session.run']:.1f} % of the forward pass), "
+                      f"Ultralytics / front end = {r['ultralytics predict'] / r['front end']:.2f}", flush=True)
 
 
 if __name__ == "__main__":

@@ -7,9 +7,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from calibration.samples import SizeSample, as_arrays
-from naoslam.camera import NAO_HFOV_DEG, PinholeCamera
+from naoslam.camera import NAO_HFOV_DEG
 from naoslam.landmarks import PoleGeometry
-from naoslam.measurement import PowerLaw, RangeCalibration
+from naoslam.measurement import PowerLaw, RangeCalibration, bearing_of_column
 
 #: Distance bins (m) of the per-distance report.
 RANGE_BINS = (0.0, 0.75, 1.25, 2.0, 3.0, 4.0, 6.0)
@@ -96,11 +96,7 @@ def _bearing_std(samples: list[SizeSample], hfov_deg: float, report: dict) -> fl
     known = [s for s in samples if s.bearing_rad is not None and s.centre_column is not None]
     if len(known) < 2:
         return math.radians(1.0)
-    errors = []
-    for s in known:
-        camera = PinholeCamera(s.image_width, s.image_width * 3 // 4, hfov_deg)
-        errors.append(float(camera.bearing_of_column(s.centre_column)) - s.bearing_rad)
-    errors = np.array(errors)
+    errors = np.array([bearing_of_column(s.centre_column, s.image_width, hfov_deg) - s.bearing_rad for s in known])
     report["bearing_error_deg"] = {"mean": float(np.degrees(errors.mean())),
                                    "std": float(np.degrees(errors.std(ddof=1))),
                                    "max_abs": float(np.degrees(np.abs(errors).max()))}

@@ -102,7 +102,7 @@ class RangeCalibration:
 
 def bearing_of_column(column: float, image_width: int, hfov_deg: float, linear: bool = False) -> float:
     """Bearing (rad, left positive) of an image column: exact pinhole, or the thesis's linear approximation."""
-    camera = PinholeCamera(image_width, max(1, image_width * 3 // 4), hfov_deg)
+    camera = PinholeCamera(image_width, image_width, hfov_deg)  # the image height does not enter the bearing
     return float(camera.linear_bearing_of_column(column) if linear else camera.bearing_of_column(column))
 
 

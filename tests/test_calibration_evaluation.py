@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from calibration.fit import calibrate, fit_power_law
-from calibration.run import embed_calibration, load_calibration, run_calibration
+from calibration.run import load_calibration
 from calibration.samples import collect_samples
 from detector.cli import main
 from detector.datasets import load_dataset
@@ -183,3 +183,14 @@ def test_evaluate_writes_metrics_plots_and_overlays(synth_dataset, tmp_path):
 def test_real_poles_calibration_images_measure(real_poles):
     samples = collect_samples(real_poles, progress=False)
     assert len(samples) == 6 and all(s.partial for s in samples) and all(s.image_width == 1280 for s in samples)
+
+
+def test_evaluate_a_pytorch_checkpoint_like_its_onnx_export(tiny_weights, tiny_onnx, synth_dataset, tmp_path):
+    from detector.evaluation.predictors import make_predictor
+
+    torch_metrics = evaluate(make_predictor(str(tiny_weights), imgsz=128), synth_dataset, tmp_path / "pt",
+                             conf=0.001, progress=False)
+    onnx_metrics = evaluate(make_predictor(str(tiny_onnx)), synth_dataset, tmp_path / "onnx", conf=0.001,
+                            progress=False)
+    assert torch_metrics["images"] == onnx_metrics["images"] > 0
+    assert abs(torch_metrics["tp"] + torch_metrics["fp"] - onnx_metrics["tp"] - onnx_metrics["fp"]) <= 2

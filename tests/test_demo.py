@@ -10,7 +10,7 @@ from detector.demo.pipeline import Budget, run_demo
 from detector.demo.stages import StageFailed, StageLedger, stage_key
 
 TINY = Budget("tiny", images=24, copies=1, models=("yolov8n-seg",), imgsz=64, epochs=1, train_hours=None, batch=8,
-              export_hw=(96, 128), calibration_shots=18, walk_seconds=8.0, compare_seeds=1, conf=0.05)
+              export_hw=(96, 128), calibration_shots=18, walk_seconds=8.0, compare_seeds=1, conf=None)
 
 
 def test_ledger_skips_done_stages_and_reruns_changed_ones(tmp_path):
@@ -46,6 +46,7 @@ def test_demo_runs_every_stage_writes_the_report_and_resumes(tmp_path):
     assert list(stages) == ["data", "check", "augment", "train yolov8n-seg", "export yolov8n-seg", "calibrate",
                             "evaluate", "slam"]
     assert all(s["status"] == "done" for s in stages.values())
+    assert stages["evaluate"]["summary"]["conf_source"] == "best F1 on the validation split"
     page = (out / "report.html").read_text()
     for heading in ("Stages and time taken", "Dataset and augmentation", "Training", "Export and agreement",
                     "Range calibration", "Evaluation on held-out frames", "EKF SLAM on a simulated walk"):

@@ -99,3 +99,27 @@ def test_run_export_fails_and_writes_nothing_when_onnx_disagrees(tiny_weights, s
     with pytest.raises(ExportMismatch, match="box IoU down to"):
         run_export(job)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_interrupted_run_resumes_where_it_stopped(synth_dataset, tmp_path, monkeypatch):
+    import detector.training as training
+
+    original = training.CpuSegmentationTrainer.__init__
+
+    def interrupt_after_first_epoch(self, *args, **kwargs):
+        original(self, *args, **kwargs)
+
+        def stop(trainer):
+            if trainer.epoch == 0:
+                raise KeyboardInterrupt
+
+        self.add_callback("on_fit_epoch_end", stop)
+
+    settings = TrainSettings(model="yolov8n-seg", epochs=2, imgsz=64, batch=8)
+    with monkeypatch.context() as patch:
+        patch.setattr(training.CpuSegmentationTrainer, "__init__", interrupt_after_first_epoch)
+        with pytest.raises(KeyboardInterrupt):
+            train_model(synth_dataset, tmp_path / "run", settings)
+    assert read_results(tmp_path / "run" / "results.csv")["epoch"] == [1.0]
+    train_model(synth_dataset, tmp_path / "run", settings, resume=True)
+    assert read_results(tmp_path / "run" / "results.csv")["epoch"] == [1.0, 2.0]

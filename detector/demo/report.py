@@ -59,7 +59,7 @@ def write_report(out: Path, results: dict, timings: list[StageRecord]) -> Path:
              "thesis did, a YOLOv8 segmentation model trained on this CPU, exported to ONNX (FP32 and INT8), range "
              "calibration, evaluation as the thesis counted, and EKF SLAM on a walk rendered image by image.</p>",
              _stages(timings, budget), _data(results), _training(results), _export(results),
-             _calibration(results["calibrate"]), _evaluation(results["evaluate"]["rows"]), _slam(results["slam"])]
+             _calibration(results["calibrate"]), _evaluation(results["evaluate"]), _slam(results["slam"])]
     page = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>poles demo report</title>"
             f"<style>{STYLE}</style></head><body>{''.join(parts)}</body></html>")
     return write_text(Path(out) / "report.html", page)
@@ -73,7 +73,7 @@ def _stages(timings: list[StageRecord], budget: dict) -> str:
             f"copies each, {', '.join(budget['models'])} at {budget['imgsz']} px"
             + (f" for {budget['train_hours'] * 60:.1f} min of training" if budget["train_hours"] else
                f" for {budget['epochs']} epochs")
-            + f", exported at {budget['export_hw'][1]}x{budget['export_hw'][0]}, confidence {budget['conf']}.</p>")
+            + f", exported at {budget['export_hw'][1]}x{budget['export_hw'][0]}.</p>")
 
 
 def _data(results: dict) -> str:
@@ -136,7 +136,8 @@ def _calibration(c: dict) -> str:
             + _img(c["plot"], "calibration fit"))
 
 
-def _evaluation(rows: list[dict]) -> str:
+def _evaluation(evaluation: dict) -> str:
+    rows = evaluation["rows"]
     header = ["front end", "images", "TP", "FP", "FN", "TN", "precision", "recall", "localisation", "mAP50",
               "range error (median)", "bearing error (median)"]
     table = [[r["model"], r["images"], r["tp"], r["fp"], r["fn"], r["tn"], _pct(r["precision"]), _pct(r["recall"]),
@@ -146,7 +147,8 @@ def _evaluation(rows: list[dict]) -> str:
               _m(r.get("bearing_error"), "median", "deg", 2)] for r in rows]
     out = ("<h2>Evaluation on held-out frames</h2><p>Counted per image as the thesis did (table 4.2): a detection "
            "is a true positive when its class matches and its mask overlaps the label with IoU &ge; 0.5; a frame "
-           f"with no pole and no detection is a true negative. Confidence threshold {rows[0]['conf']}. Thesis on "
+           f"with no pole and no detection is a true negative. Confidence threshold {evaluation['conf']:.2f} "
+           f"({html.escape(evaluation['conf_source'])}). Thesis on "
            "real frames: colour filter 97.4 % / 65.8 %, YOLOv8s 92.9 % / 98.3 % (IoU 0.8714), YOLOv8m 94.4 % / "
            "99.2 % (IoU 0.8783).</p>" + _table(header, table))
     for r in rows:

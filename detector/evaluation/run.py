@@ -13,11 +13,12 @@ from detector.datasets.polygons import polygon_to_mask
 from detector.datasets.truth import load_truth
 from detector.evaluation.counting import (ImageEvaluation, confidence_sweep, evaluate_image, map_scores,
                                           precision_recall, totals)
-from detector.evaluation.plots import write_overlays, plot_per_image, plot_sweep
+from detector.evaluation.plots import plot_per_image, plot_sweep, write_overlays
 from detector.evaluation.predictors import Predictor
 from naoslam.atomic import write_json
-from naoslam.camera import PinholeCamera
+from naoslam.camera import NAO_HFOV_DEG
 from naoslam.landmarks import CLASSES
+from naoslam.measurement import bearing_of_column
 
 
 def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", conf: float = 0.5,
@@ -82,8 +83,8 @@ def _measurement_errors(images: list[ImageEvaluation], conf: float, predictor: P
                 continue
             width = truth.get("image_width") or 640
             if truth.get("bearing_rad") is not None:
-                camera = PinholeCamera(width, width * 3 // 4, calibration.hfov_deg if calibration else 56.3)
-                bearing_err.append(math.degrees(float(camera.bearing_of_column(pred.centre_columns[p]))
+                hfov = calibration.hfov_deg if calibration else NAO_HFOV_DEG
+                bearing_err.append(math.degrees(bearing_of_column(pred.centre_columns[p], width, hfov)
                                                 - truth["bearing_rad"]))
             if truth.get("range_m") is not None and calibration is not None:
                 estimate = _range(pred, p, calibration, width)
