@@ -73,7 +73,8 @@ def _stages(timings: list[StageRecord], budget: dict) -> str:
             f"copies each, {', '.join(budget['models'])} at {budget['imgsz']} px"
             + (f" for {budget['train_hours'] * 60:.1f} min of training" if budget["train_hours"] else
                f" for {budget['epochs']} epochs")
-            + f", exported at {budget['export_hw'][1]}x{budget['export_hw'][0]}.</p>")
+            + f", exported at {budget['export_hw'][1]}x{budget['export_hw'][0]}.</p>"
+            + f"<p class='note'>{html.escape(budget['rationale'])}</p>")
 
 
 def _data(results: dict) -> str:
