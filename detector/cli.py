@@ -163,6 +163,7 @@ def _slam(args: argparse.Namespace) -> int:
     from calibration.run import load_calibration
     from detector.slam_run import (BACKENDS, FrontEnd, compare_backends, print_comparison, recorded_sequence,
                                    sim_sequence, utias_sequence, write_outputs)
+    from naoslam.atomic import write_json
     from naoslam.ekf_slam import SlamConfig
     from naoslam.runner import run_slam
     from naoslam.sim import SimConfig
@@ -191,8 +192,6 @@ def _slam(args: argparse.Namespace) -> int:
     if args.compare:
         seeds = list(range(args.seed, args.seed + (args.compare if args.sim else 1)))
         rows = compare_backends(make, seeds, BACKENDS)
-        from naoslam.atomic import write_json
-
         write_json(args.out / "comparison.json", rows)
         print_comparison(rows, f"back ends on {sequence.name} ({len(seeds)} seed(s))")
     return 0

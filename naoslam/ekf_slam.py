@@ -34,6 +34,12 @@ class SlamConfig:
     min_views: int = 1
     min_view_radius_m: float = 0.5
 
+    def __post_init__(self) -> None:
+        if self.min_views < 1:
+            raise ValueError(f"--min-views {self.min_views} must be at least 1")
+        if self.gate is not None and self.gate <= 0:
+            raise ValueError(f"--gate {self.gate} must be a positive chi-square bound (e.g. 9.21)")
+
     @property
     def label(self) -> str:
         parts = ["FEJ-EKF" if self.fej else "EKF"]

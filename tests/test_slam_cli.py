@@ -1,0 +1,66 @@
+"""`poles slam` end to end: outputs of a simulated walk, the comparison table, recorded frames, bad input."""
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from detector.cli import main
+from detector.slam_run import FrontEnd, recorded_sequence
+from naoslam.measurement import PowerLaw, RangeCalibration
+from naoslam.runner import run_slam
+
+
+def test_slam_command_writes_metrics_map_path_plots_and_comparison(tmp_path, capsys):
+    out = tmp_path / "slam"
+    assert main(["slam", "--sim", "square", "--duration", "30", "--backend", "fej", "--gate", "--min-views", "3",
+                 "--compare", "2", "--out", str(out)]) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    for key in ("robot_error", "landmark_error"):
+        assert set(metrics[key]) >= {"mean", "std", "rmse"}
+    assert metrics["label"] == "FEJ-EKF + gate 9.21 + min view 3" and "nees" in metrics
+    rows = json.loads((out / "comparison.json").read_text())
+    assert len(rows) == 8 and all(row["seeds"] == 2 for row in rows)
+    for name in ("map.png", "errors.png"):
+        assert cv2.imread(str(out / name)) is not None
+    assert len((out / "path.csv").read_text().splitlines()) == 301 + 1
+    assert set(json.loads((out / "map.json").read_text())) <= {"bp", "gp", "yp", "pb", "pg", "py"}
+    assert "back ends on sim square" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv, message", [(["--min-views", "0"], "at least 1"), (["--gate", "-1"], "positive"),
+                                          (["--frames", "x"], "--frames needs --odometry")])
+def test_slam_command_refuses_bad_settings(argv, message, tmp_path, capsys):
+    base = [] if "--frames" in argv else ["--sim", "square"]
+    assert main(["slam", *base, *argv, "--out", str(tmp_path / "o")]) == 2
+    assert message in capsys.readouterr().err
+
+
+def _recording(folder):
+    frames = folder / "frames"
+    frames.mkdir()
+    for t in (0.0, 0.5, 1.0):
+        cv2.imwrite(str(frames / f"{t}.jpg"), np.full((240, 320, 3), 90, np.uint8))
+    odometry = folder / "odometry.csv"
+    odometry.write_text("t,x,y,theta\n0.0,0,0,0\n0.4,0.05,0,0\n0.8,0.1,0,0.02\n1.2,0.15,0,0.04\n")
+    return frames, odometry
+
+
+def test_a_recording_merges_frames_and_odometry_with_the_offset(tmp_path):
+    frames, odometry = _recording(tmp_path)
+    calibration = RangeCalibration(PowerLaw(50, -1), PowerLaw(220, -1), colour_law=PowerLaw(6.2, -1.0, 0.03))
+    sequence = recorded_sequence(frames, odometry, FrontEnd("colour-filter", calibration), time_offset_s=0.3)
+    assert [round(e.t, 2) for e in sequence.events if e.measurements is not None] == [0.3, 0.8, 1.3]
+    assert sum(e.control is not None for e in sequence.events) == 3
+    result = run_slam(sequence)
+    assert np.allclose(result.poses[-1], [0.15, 0.0, 0.04], atol=1e-9)
+
+
+def test_a_recording_with_a_bad_odometry_line_is_named(tmp_path):
+    frames, odometry = _recording(tmp_path)
+    odometry.write_text("t,x,y,theta\n0.0,0,0,0\n0.4,far,0,0\n")
+    calibration = RangeCalibration(PowerLaw(50, -1), PowerLaw(220, -1), colour_law=PowerLaw(6.2, -1.0, 0.03))
+    with pytest.raises(ValueError, match=r"odometry.csv:3: not numbers"):
+        recorded_sequence(frames, odometry, FrontEnd("colour-filter", calibration), 0.3)
