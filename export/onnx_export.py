@@ -5,8 +5,10 @@ files are never touched. The final model is moved into place atomically.
 """
 from __future__ import annotations
 
+import logging
 import shutil
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -42,13 +44,27 @@ def export_onnx(weights: Path, out: Path, input_hw: tuple[int, int] = NAO_INPUT_
         model = YOLO(str(copy))
         if model.task != "segment":
             raise ValueError(f"{weights}: a {model.task} model, not a segmentation model - train a *-seg model")
-        exported = Path(model.export(format="onnx", imgsz=list(input_hw), simplify=True, dynamic=False,
-                                     nms=False, device="cpu", verbose=False))
+        with _quiet_ultralytics():
+            exported = Path(model.export(format="onnx", imgsz=list(input_hw), simplify=True, dynamic=False,
+                                         nms=False, device="cpu", verbose=False))
         names = model.names
         info = ModelInfo(tuple(names[i] for i in sorted(names)), tuple(input_hw), int(max(model.model.stride)),
                          _model_name(model), dict(extra or {}))
         write_metadata(exported, info, out)
     return out
+
+
+@contextmanager
+def _quiet_ultralytics():
+    """Keep Ultralytics' export banner (paths in a scratch folder, netron links) off the terminal."""
+    from ultralytics.utils import LOGGER
+
+    level = LOGGER.level
+    LOGGER.setLevel(logging.WARNING)
+    try:
+        yield
+    finally:
+        LOGGER.setLevel(level)
 
 
 def _model_name(model) -> str:

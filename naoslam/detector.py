@@ -68,13 +68,6 @@ class Detection:
         out[y0:y0 + h, x0:x0 + w] = self.mask
         return out
 
-    def polygon(self) -> np.ndarray:
-        """Outline of the largest mask part as (N, 2) frame pixel coordinates (empty when the mask is empty)."""
-        contours, _ = cv2.findContours(self.mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-        if not contours:
-            return np.zeros((0, 2), dtype=np.float32)
-        return max(contours, key=cv2.contourArea).reshape(-1, 2).astype(np.float32) + self.mask_origin
-
 
 @dataclass(frozen=True)
 class Letterbox:
