@@ -9,7 +9,7 @@ import numpy as np
 
 from calibration.fit import calibrate
 from calibration.samples import SizeSample, as_arrays, collect_samples
-from naoslam.atomic import atomic_path, write_json
+from naoslam.atomic import write_json
 from naoslam.measurement import RangeCalibration
 
 #: The 2024 thesis's laws at 640x480, drawn for comparison.
@@ -50,10 +50,7 @@ def embed_calibration(model: Path, calibration: RangeCalibration) -> Path:
 
 def plot_fit(samples: list[SizeSample], calibration: RangeCalibration, png: Path) -> Path:
     """Range against width and height (log-log) with the fitted laws and the thesis's."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from detector.figures import plt, save_figure
 
     columns = as_arrays(samples, calibration.reference_width_px)
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
@@ -75,10 +72,7 @@ def plot_fit(samples: list[SizeSample], calibration: RangeCalibration, png: Path
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=8)
     fig.suptitle("range calibration")
-    with atomic_path(png) as tmp:
-        fig.savefig(tmp, dpi=90, format="png")
-    plt.close(fig)
-    return Path(png)
+    return save_figure(fig, png)
 
 
 def print_calibration(result: dict) -> None:

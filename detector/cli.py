@@ -191,7 +191,7 @@ def _slam(args: argparse.Namespace) -> int:
     print(f"{config.label} on {sequence.name}: {summary}; wrote {args.out}")
     if args.compare:
         seeds = list(range(args.seed, args.seed + (args.compare if args.sim else 1)))
-        rows = compare_backends(make, seeds, BACKENDS)
+        rows = compare_backends(lambda s: sequence if s == args.seed else make(s), seeds, BACKENDS)
         write_json(args.out / "comparison.json", rows)
         print_comparison(rows, f"back ends on {sequence.name} ({len(seeds)} seed(s))")
     return 0

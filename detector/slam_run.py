@@ -49,7 +49,10 @@ class FrontEnd:
         from naoslam.detector import LandmarkDetector
 
         detector = LandmarkDetector(self.model, conf=min(0.25, self.min_confidence))
-        calibration = self.calibration or _embedded_calibration(detector)
+        calibration = self.calibration or detector.calibration
+        if calibration is None:
+            raise ValueError(f"{self.model}: no calibration in the model - run `poles calibrate --embed` "
+                             "or pass --calibration")
         model = MeasurementModel(calibration, self.min_confidence)
         return lambda frame: model.measure(detector(frame), frame.shape[1])
 
@@ -73,26 +76,26 @@ class FrontEnd:
         return measure
 
 
-def _embedded_calibration(detector) -> RangeCalibration:
-    data = detector.info.extra.get("calibration")
-    if data is None:
-        raise ValueError(f"{detector.path}: no calibration in the model - run `poles calibrate --embed` "
-                         "or pass --calibration")
-    return RangeCalibration.from_dict(data)
-
-
 def sim_sequence(config: SimConfig, front_end: FrontEnd | None = None, progress: bool = True) -> Sequence:
     """Measurement-level walk, or image-level when a front end is given (frames rendered along the walk)."""
-    walk = simulate(config)
     if front_end is None:
-        return walk_sequence(walk)
+        return walk_sequence(simulate(config))
+    return image_sequences(config, [front_end], progress)[0]
+
+
+def image_sequences(config: SimConfig, front_ends: list[FrontEnd], progress: bool = True) -> list[Sequence]:
+    """One walk, its frames rendered once, seen through each front end in turn."""
     from detector.synth.walk import render_walk
 
-    measure = front_end.measurer()
+    walk = simulate(config)
     frames = render_walk(walk, seed=config.seed, progress=progress)
-    sequence = walk_sequence(walk, [measure(frame) for frame in frames])
-    sequence.name = f"sim {config.path}, images through {Path(front_end.model).name}"
-    return sequence
+    sequences = []
+    for front_end in front_ends:
+        measure = front_end.measurer()
+        sequence = walk_sequence(walk, [measure(frame) for frame in frames])
+        sequence.name = f"sim {config.path}, images through {Path(front_end.model).name}"
+        sequences.append(sequence)
+    return sequences
 
 
 def recorded_sequence(frames_dir: Path, odometry_csv: Path, front_end: FrontEnd, time_offset_s: float) -> Sequence:
@@ -183,18 +186,10 @@ def print_comparison(rows: list[dict], title: str) -> None:
     Console().print(table)
 
 
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
 def plot_map(result: SlamResult, png: Path, title: str) -> Path:
     """True and estimated landmarks and paths (and odometry), like the thesis's map figures."""
-    plt = _plt()
+    from detector.figures import plt, save_figure
+
     fig, ax = plt.subplots(figsize=(7, 5), constrained_layout=True)
     if result.true_poses is not None:
         ax.plot(result.true_poses[:, 0], result.true_poses[:, 1], color="black", linewidth=1, label="true path")
@@ -217,15 +212,13 @@ def plot_map(result: SlamResult, png: Path, title: str) -> Path:
     ax.set_title(f"{result.label} - {title}", fontsize=9)
     ax.legend(fontsize=7, loc="best")
     ax.grid(alpha=0.3)
-    with atomic_path(png) as tmp:
-        fig.savefig(tmp, dpi=90, format="png")
-    plt.close(fig)
-    return png
+    return save_figure(fig, png)
 
 
 def plot_errors(result: SlamResult, png: Path) -> Path:
     """Robot position error over time for the filter and for odometry alone."""
-    plt = _plt()
+    from detector.figures import plt, save_figure
+
     fig, ax = plt.subplots(figsize=(7, 3), constrained_layout=True)
     ax.plot(result.times, np.linalg.norm(result.poses[:, :2] - result.true_poses[:, :2], axis=1), label=result.label)
     if result.odometry_poses is not None:
@@ -235,7 +228,4 @@ def plot_errors(result: SlamResult, png: Path) -> Path:
     ax.set_ylabel("robot position error (m)")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
-    with atomic_path(png) as tmp:
-        fig.savefig(tmp, dpi=90, format="png")
-    plt.close(fig)
-    return png
+    return save_figure(fig, png)

@@ -101,13 +101,16 @@ def _data_yaml(data: Path) -> Path:
     return path
 
 
+def read_checkpoint(path: Path) -> dict:
+    """A local Ultralytics checkpoint as a dict (plain torch.load on the CPU: never a download)."""
+    return torch_utils.torch.load(str(path), map_location="cpu", weights_only=False)
+
+
 def _resumable_data(last: Path) -> str:
     """The dataset of an interrupted run, or an error saying why it cannot be resumed."""
-    import torch
-
     if not last.is_file():
         raise FileNotFoundError(f"{last}: nothing to resume - start the run without --resume")
-    checkpoint = torch.load(str(last), map_location="cpu", weights_only=False)
+    checkpoint = read_checkpoint(last)
     if checkpoint.get("epoch", -1) < 0:
         raise ValueError(f"{last}: this run finished all its epochs, nothing to resume - "
                          "fine-tune with --weights to train further")
@@ -124,7 +127,7 @@ def recalibrate_batchnorm(weights: Path, images: list[Path], imgsz: tuple[int, i
     import numpy as np
     import torch
 
-    checkpoint = torch.load(str(weights), map_location="cpu", weights_only=False)
+    checkpoint = read_checkpoint(weights)
     model = (checkpoint.get("ema") or checkpoint["model"]).float()
     frames = [cv2.resize(cv2.imread(str(p)), imgsz[::-1])[:, :, ::-1] for p in images]
     batch = torch.from_numpy(np.stack(frames).transpose(0, 3, 1, 2).copy()).float() / 255

@@ -4,12 +4,7 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-
-from naoslam.atomic import atomic_path  # noqa: E402
+from detector.figures import plt, save_figure
 
 LOSSES = ("box_loss", "seg_loss", "cls_loss", "dfl_loss")
 METRICS = ("mAP50(B)", "mAP50-95(B)", "mAP50(M)", "mAP50-95(M)")
@@ -62,7 +57,4 @@ def plot_training_curves(csv_path: Path, png: Path) -> Path:
         ax.legend(fontsize=7)
         ax.grid(alpha=0.3)
     fig.suptitle(f"training curves (best epoch {best} of {len(epochs)}, dotted)")
-    with atomic_path(png) as tmp:
-        fig.savefig(tmp, dpi=90, format="png")
-    plt.close(fig)
-    return Path(png)
+    return save_figure(fig, png)

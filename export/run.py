@@ -56,10 +56,9 @@ def dataset_images(data: Path, splits: tuple[str, ...], limit: int) -> list[Path
 
 def training_dataset(weights: Path) -> Path:
     """The dataset folder a checkpoint was trained on (from its train_args), for when --data is not given."""
-    import torch
+    from detector.training import read_checkpoint
 
-    checkpoint = torch.load(str(weights), map_location="cpu", weights_only=False)
-    data = (checkpoint.get("train_args") or {}).get("data")
+    data = (read_checkpoint(weights).get("train_args") or {}).get("data")
     if not data or not Path(data).exists():
         raise FileNotFoundError(f"{weights}: the dataset it was trained on ({data}) is not here - pass --data DATA")
     return Path(data).parent if Path(data).is_file() else Path(data)

@@ -27,15 +27,16 @@ def ultralytics_predict(model: Path, frames: list[np.ndarray], input_hw: tuple[i
     from ultralytics import YOLO
 
     predictor = YOLO(str(model), task="segment")
-    out = []
-    for frame in frames:
-        result = predictor.predict(frame, imgsz=list(input_hw), conf=conf, retina_masks=True, device="cpu",
-                                   verbose=False)[0]
-        masks = (result.masks.data.numpy() > 0.5 if result.masks is not None
-                 else np.zeros((0, *frame.shape[:2]), dtype=bool))
-        boxes = result.boxes
-        out.append(FrameDetections(boxes.cls.numpy().astype(int), boxes.conf.numpy(), boxes.xyxy.numpy(), masks))
-    return out
+    return [ultralytics_frame(predictor, frame, list(input_hw), conf) for frame in frames]
+
+
+def ultralytics_frame(predictor, frame: np.ndarray, imgsz: int | list[int], conf: float) -> FrameDetections:
+    """One frame through a loaded Ultralytics model, masks at the frame's resolution (``retina_masks``)."""
+    result = predictor.predict(frame, imgsz=imgsz, conf=conf, retina_masks=True, device="cpu", verbose=False)[0]
+    masks = (result.masks.data.numpy() > 0.5 if result.masks is not None
+             else np.zeros((0, *frame.shape[:2]), dtype=bool))
+    boxes = result.boxes
+    return FrameDetections(boxes.cls.numpy().astype(int), boxes.conf.numpy(), boxes.xyxy.numpy(), masks)
 
 
 def frontend_predict(model: Path, frames: list[np.ndarray], conf: float) -> list[FrameDetections]:

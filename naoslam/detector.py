@@ -16,6 +16,7 @@ import numpy as np
 import onnxruntime as ort
 
 from naoslam.landmarks import CLASSES
+from naoslam.measurement import RangeCalibration
 from naoslam.model_info import ModelInfo
 
 #: Ultralytics' letterbox fill value.
@@ -158,6 +159,12 @@ class LandmarkDetector:
     @property
     def input_hw(self) -> tuple[int, int]:
         return self.info.input_hw
+
+    @property
+    def calibration(self) -> RangeCalibration | None:
+        """The range calibration stored in the model by ``poles calibrate --embed`` (None if there is none)."""
+        data = self.info.extra.get("calibration")
+        return RangeCalibration.from_dict(data) if data else None
 
     def _check_signature(self) -> None:
         inputs, outputs = self.session.get_inputs(), self.session.get_outputs()

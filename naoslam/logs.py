@@ -56,8 +56,7 @@ def load_utias(folder: Path, range_std: float = 0.1, bearing_std: float = math.r
         subject = str(subject_of_barcode.get(int(barcode), -1))
         if subject in landmarks and t < end:
             frames.setdefault(t, []).append(Measurement(r, b, subject, 1.0, range_std, bearing_std, "utias"))
-    # A measurement stamped t is taken after the control that starts at t has acted: order it just after.
-    events = merge_frames(controls, [Event(t + 1e-6, measurements=m) for t, m in sorted(frames.items())])
+    events = merge_frames(controls, [Event(t, measurements=m) for t, m in sorted(frames.items())])
     for event in events:
         event.t -= start
     return Sequence(events, np.zeros(3), VelocityModel(), landmarks, f"UTIAS {folder.name}")

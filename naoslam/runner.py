@@ -33,7 +33,8 @@ class Sequence:
 
 
 def merge_frames(controls: list[Event], frames: list[Event], time_offset_s: float = 0.0) -> list[Event]:
-    """Odometry and frame events in one time order; frames shifted by ``time_offset_s`` (the thesis: +0.3 s)."""
+    """Odometry and frame events in one time order; frames shifted by ``time_offset_s`` (the thesis: +0.3 s).
+    At equal times the odometry comes first."""
     shifted = [Event(f.t + time_offset_s, None, f.measurements, f.true_pose) for f in frames]
     return sorted(controls + shifted, key=lambda e: (e.t, e.measurements is not None))
 

@@ -208,7 +208,8 @@ def _evaluate(folder: Path, models: list[Path], data: Path, calibration_json: Pa
 
 def _slam(folder: Path, model: Path, calibration_json: Path, budget: Budget, conf: float, seed: int) -> dict:
     from calibration.run import load_calibration
-    from detector.slam_run import BACKENDS, FrontEnd, compare_backends, sim_sequence, write_outputs
+    from detector.slam_run import (BACKENDS, FrontEnd, compare_backends, image_sequences, sim_sequence,
+                                   write_outputs)
     from naoslam.atomic import write_json
     from naoslam.ekf_slam import SlamConfig
     from naoslam.observation import CHI2_2DOF_99
@@ -220,9 +221,9 @@ def _slam(folder: Path, model: Path, calibration_json: Path, budget: Budget, con
     chosen = SlamConfig(fej=True, gate=CHI2_2DOF_99, min_views=3)
     summary: dict = {"backend": chosen.label}
     tables = {}
-    for name, front_end in (("model", FrontEnd(str(model), calibration, conf)),
-                            ("colour filter", FrontEnd("colour-filter", calibration, conf))):
-        sequence = sim_sequence(sim, front_end)
+    front_ends = {"model": FrontEnd(str(model), calibration, conf),
+                  "colour filter": FrontEnd("colour-filter", calibration, conf)}
+    for name, sequence in zip(front_ends, image_sequences(sim, list(front_ends.values()))):
         metrics = write_outputs(run_slam(sequence, chosen), sequence, folder / name.replace(" ", "-"))
         summary[name] = {"metrics": metrics, "map": str(folder / name.replace(" ", "-") / "map.png"),
                          "errors": str(folder / name.replace(" ", "-") / "errors.png"),

@@ -4,25 +4,15 @@ from __future__ import annotations
 from pathlib import Path
 
 import cv2
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from detector.evaluation.counting import ImageEvaluation  # noqa: E402
-from naoslam.atomic import atomic_path, write_bytes  # noqa: E402
+from detector.evaluation.counting import ImageEvaluation
+from detector.figures import plt, save_figure
+from naoslam.atomic import write_bytes
 
 COUNT_COLOURS = {"tp": "#2ca02c", "fp": "#d62728", "fn": "#ff7f0e", "tn": "#1f77b4"}
 #: BGR colours of the overlays: matched detections, false positives, missed labels.
 TP_BGR, FP_BGR, FN_BGR = (255, 160, 0), (0, 0, 255), (0, 220, 255)
-
-
-def _save(fig, png: Path) -> Path:
-    with atomic_path(png) as tmp:
-        fig.savefig(tmp, dpi=90, format="png")
-    plt.close(fig)
-    return Path(png)
 
 
 def plot_per_image(per_image: list[dict], png: Path, title: str) -> Path:
@@ -38,7 +28,7 @@ def plot_per_image(per_image: list[dict], png: Path, title: str) -> Path:
     ax.set_ylabel("count")
     ax.set_title(f"{title}: per-image counts")
     ax.legend(ncol=4, fontsize=8)
-    return _save(fig, png)
+    return save_figure(fig, png)
 
 
 def plot_sweep(sweep: list[dict], png: Path, title: str) -> Path:
@@ -54,7 +44,7 @@ def plot_sweep(sweep: list[dict], png: Path, title: str) -> Path:
     ax.set_title(f"{title}: confidence sweep")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
-    return _save(fig, png)
+    return save_figure(fig, png)
 
 
 def _outline(image: np.ndarray, mask: np.ndarray, colour, text: str) -> None:

@@ -43,8 +43,7 @@ class OnnxPredictor(Predictor):
     def __init__(self, path: Path):
         self.detector = LandmarkDetector(path, conf=SWEEP_CONF)
         self.name = Path(path).name
-        calibration = self.detector.info.extra.get("calibration")
-        self.calibration = RangeCalibration.from_dict(calibration) if calibration else None
+        self.calibration = self.detector.calibration
 
     def __call__(self, frame: np.ndarray) -> Prediction:
         found = self.detector(frame)
@@ -64,13 +63,12 @@ class TorchPredictor(Predictor):
         self.name = Path(path).name
 
     def __call__(self, frame: np.ndarray) -> Prediction:
-        result = self.model.predict(frame, imgsz=self.imgsz, conf=SWEEP_CONF, retina_masks=True, device="cpu",
-                                    verbose=False)[0]
-        if result.masks is None:
-            return Prediction([], np.zeros(0), [], [], [])
-        masks = [m > 0.5 for m in result.masks.data.numpy()]
+        from export.verify import ultralytics_frame
+
+        found = ultralytics_frame(self.model, frame, self.imgsz, SWEEP_CONF)
+        masks = list(found.masks)
         boxes = [rotated_box_of_mask(m) for m in masks]
-        return Prediction([self.model.names[int(c)] for c in result.boxes.cls], result.boxes.conf.numpy(), masks,
+        return Prediction([self.model.names[int(c)] for c in found.class_ids], found.scores, masks,
                           [mask_centre_column(m) if m.any() else 0.0 for m in masks],
                           [(b.width, b.height) if b else None for b in boxes])
 
