@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import json
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -42,10 +41,9 @@ def load_calibration(path: Path) -> RangeCalibration:
 
 def embed_calibration(model: Path, calibration: RangeCalibration) -> Path:
     """Store the calibration in the ONNX model's naoslam metadata (the weights are untouched)."""
-    from export.onnx_export import read_info, write_metadata
+    from export.onnx_export import add_metadata
 
-    info = read_info(model)
-    return write_metadata(model, replace(info, extra={**info.extra, "calibration": calibration.to_dict()}), model)
+    return add_metadata(model, calibration=calibration.to_dict())
 
 
 def plot_fit(samples: list[SizeSample], calibration: RangeCalibration, png: Path) -> Path:

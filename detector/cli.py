@@ -39,6 +39,10 @@ def build_parser() -> argparse.ArgumentParser:
     synth.add_argument("--hfov", type=float, default=56.3, help="horizontal field of view in degrees (default 56.3)")
     synth.add_argument("--calibration-shots", action="store_true",
                        help="one pole per image at known distances 0.5-5 m and angles 0, +-10, +-20 deg")
+    synth.add_argument("--backgrounds", type=Path,
+                       help="folder of real robot-camera frames without poles: draw the poles over them")
+    synth.add_argument("--backdrop-share", type=float, default=1.0,
+                       help="with --backgrounds, the fraction of frames drawn over them (default 1; the rest ray-cast)")
     synth.add_argument("--preview", action="store_true", help="also write preview.png, a contact sheet with labels drawn")
     synth.add_argument("--workers", type=int, default=None, help="render processes (default: every core)")
     synth.add_argument("--force", action="store_true", help="replace --out if it exists")
@@ -81,8 +85,9 @@ def build_parser() -> argparse.ArgumentParser:
     train = sub.add_parser("train", help="train a YOLOv8 segmentation model on the CPU (offline, every core)")
     train.add_argument("--data", type=Path, required=True, help="dataset folder with data.yaml")
     train.add_argument("--out", type=Path, required=True, help="run folder (weights/best.pt, results.csv, curves)")
-    train.add_argument("--model", default="yolov8s-seg", help="yolov8n-seg, yolov8s-seg (default) or yolov8m-seg")
-    train.add_argument("--weights", type=Path, help="local checkpoint to fine-tune from (default: train from scratch)")
+    train.add_argument("--model", help="yolov8n-seg (default), yolov8s-seg or yolov8m-seg")
+    train.add_argument("--weights", help="checkpoint to fine-tune from (default: the shipped pole model for "
+                                         "yolov8n-seg), or `scratch` to train from the architecture alone")
     train.add_argument("--epochs", type=int, default=100)
     train.add_argument("--time", type=float, help="train for this many hours instead (Ultralytics fits the epochs)")
     train.add_argument("--imgsz", type=int, default=640, help="training image size (default 640)")
@@ -92,6 +97,8 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--threads", type=int, help="torch threads (default: every core)")
     train.add_argument("--workers", type=int, default=0, help="data-loader processes (default 0: best on 2 cores)")
     train.add_argument("--no-cache", action="store_true", help="do not cache decoded images in RAM")
+    train.add_argument("--device", default="cpu",
+                       help="cpu (default), a GPU index such as 0, several such as 0,1 (Ultralytics' DDP), or mps")
     train.add_argument("--resume", action="store_true", help="continue the interrupted run in --out")
 
     export = sub.add_parser("export", help="export to ONNX (FP32, optional INT8), verified against PyTorch")
@@ -120,11 +127,13 @@ def build_parser() -> argparse.ArgumentParser:
     calib.add_argument("--force", action="store_true")
 
     evaluate = sub.add_parser("evaluate", help="precision, recall and mask IoU per image on held-out frames")
-    evaluate.add_argument("--model", action="append", required=True,
-                          help="a .pt checkpoint, an .onnx model or `colour-filter`; repeat to compare several")
+    evaluate.add_argument("--model", action="append",
+                          help="a .pt checkpoint, an .onnx model, `shipped`, `shipped-int8` or `colour-filter`; "
+                               "repeat to compare several (default: the shipped model)")
     evaluate.add_argument("--data", type=Path, required=True)
     evaluate.add_argument("--split", default="test", help="split to evaluate (default test)")
-    evaluate.add_argument("--conf", type=float, default=0.5, help="confidence threshold for the counts (default 0.5)")
+    evaluate.add_argument("--conf", type=float,
+                          help="confidence threshold for the counts (default: the model's own, else 0.5)")
     evaluate.add_argument("--calibration", type=Path, help="calibration.json for range errors "
                                                            "(default: the one embedded in the ONNX model)")
     evaluate.add_argument("--imgsz", type=int, default=640, help="inference size for .pt checkpoints")
@@ -136,9 +145,11 @@ def build_parser() -> argparse.ArgumentParser:
     source.add_argument("--utias", type=Path, help="UTIAS MRCLAM folder (Odometry.dat, Measurement.dat, ...)")
     source.add_argument("--frames", type=Path, help="recorded frames named <time>.jpg (with --odometry)")
     slam.add_argument("--odometry", type=Path, help="odometry CSV t,x,y,theta for --frames")
-    slam.add_argument("--frontend", help="model.onnx or colour-filter: the image-level simulation / recording")
+    slam.add_argument("--frontend", help="model.onnx, `shipped` or colour-filter: the image-level simulation / "
+                                         "recording (default for --frames: the shipped model)")
     slam.add_argument("--calibration", type=Path, help="calibration.json (default: the one in the model)")
-    slam.add_argument("--conf", type=float, default=0.85, help="detections used from this confidence (thesis 0.85)")
+    slam.add_argument("--conf", type=float,
+                      help="detections used from this confidence (default: the model's own threshold, else 0.85)")
     slam.add_argument("--time-offset", type=float, default=0.3, help="frame time shift for recordings (thesis +0.3 s)")
     slam.add_argument("--backend", choices=("ekf", "fej"), default="ekf")
     slam.add_argument("--min-views", type=int, default=1, help="sightings before a landmark enters the map")
@@ -169,7 +180,8 @@ def _slam(args: argparse.Namespace) -> int:
     from naoslam.sim import SimConfig
 
     calibration = load_calibration(args.calibration) if args.calibration else None
-    front_end = FrontEnd(args.frontend, calibration, args.conf) if args.frontend else None
+    frontend = args.frontend or ("shipped" if args.frames else None)
+    front_end = FrontEnd(frontend, calibration, args.conf) if frontend else None
     if args.sim:
         def make(seed: int):
             return sim_sequence(SimConfig(path=args.sim, duration_s=args.duration or 60.0, seed=seed), front_end)
@@ -207,11 +219,14 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _synth(args: argparse.Namespace) -> int:
+    from detector.synth.backdrops import scan_backdrops
     from detector.synth.generate import SynthJob, generate_dataset
 
     if args.images < 1:
         raise ValueError("--images must be at least 1")
-    job = SynthJob(args.images, args.seed, *args.size, hfov_deg=args.hfov, calibration_shots=args.calibration_shots)
+    backgrounds = scan_backdrops(args.backgrounds) if args.backgrounds is not None else ()
+    job = SynthJob(args.images, args.seed, *args.size, hfov_deg=args.hfov, calibration_shots=args.calibration_shots,
+                   backgrounds=backgrounds, backdrop_share=args.backdrop_share)
     out = generate_dataset(args.out, job, workers=args.workers, preview=args.preview, force=args.force)
     print(f"wrote {args.images} images to {out}")
     return 0
@@ -264,12 +279,15 @@ def _split(args: argparse.Namespace) -> int:
 
 
 def _train(args: argparse.Namespace) -> int:
-    from detector.training import TrainSettings, summarise_run, train_model
+    from detector.training import TrainSettings, starting_point, summarise_run, train_model
 
-    settings = TrainSettings(model=args.model, epochs=args.epochs, imgsz=args.imgsz, batch=args.batch,
+    model, weights = (args.model or "", None) if args.resume else starting_point(args.model, args.weights)
+    if not args.resume:
+        print(f"starting from {weights or f'{model}.yaml (no pretrained weights)'}")
+    settings = TrainSettings(model=model or "yolov8n-seg", epochs=args.epochs, imgsz=args.imgsz, batch=args.batch,
                              patience=args.patience, seed=args.seed, threads=args.threads, workers=args.workers,
-                             cache=not args.no_cache, time_hours=args.time)
-    run = train_model(args.data, args.out, settings, weights=args.weights, resume=args.resume)
+                             cache=not args.no_cache, time_hours=args.time, device=args.device)
+    run = train_model(args.data, args.out, settings, weights=weights, resume=args.resume)
     best = summarise_run(run)
     print(f"best epoch {best['best_epoch']} of {best['epochs']} (validation): mask mAP50 {best['mAP50(M)']:.3f}, "
           f"mAP50-95 {best['mAP50-95(M)']:.3f}; weights {run / 'weights' / 'best.pt'}; curves {run / 'training_curves.png'}")
@@ -301,13 +319,19 @@ def _evaluate(args: argparse.Namespace) -> int:
 
     calibration = load_calibration(args.calibration) if args.calibration else None
     rows = []
-    for model in args.model:
+    models = args.model or ["shipped"]
+    for model in models:
         predictor = make_predictor(model, args.imgsz, calibration)
-        out = args.out / predictor.name if len(args.model) > 1 else args.out
-        rows.append(evaluate(predictor, args.data, out, args.split, args.conf))
+        out = args.out / predictor.name if len(models) > 1 else args.out
+        conf = args.conf if args.conf is not None else predictor.operating_conf or FALLBACK_CONF
+        rows.append(evaluate(predictor, args.data, out, args.split, conf))
     print_metrics(rows)
     print(f"wrote {args.out} (metrics.json, per_image.png, sweep.png, errors/)")
     return 0
+
+
+#: ``poles evaluate``'s threshold for a model that stores none.
+FALLBACK_CONF = 0.5
 
 
 def _demo(args: argparse.Namespace) -> int:

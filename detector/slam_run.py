@@ -15,8 +15,9 @@ import numpy as np
 from naoslam.atomic import atomic_path, write_json
 from naoslam.ekf_slam import SlamConfig
 from naoslam.logs import load_utias
-from naoslam.measurement import Measurement, MeasurementModel, RangeCalibration
+from naoslam.measurement import THESIS_CONF, Measurement, MeasurementModel, RangeCalibration
 from naoslam.observation import CHI2_2DOF_99
+from naoslam.shipped import OPERATING_CONF_KEY
 from naoslam.runner import Event, Sequence, SlamResult, merge_frames, run_slam, walk_sequence
 from naoslam.sim import SimConfig, simulate
 from naoslam.motion import OdometryModel
@@ -36,11 +37,14 @@ BACKENDS = {
 
 @dataclass(frozen=True)
 class FrontEnd:
-    """Turns frames into measurements: an ONNX model or the colour filter, with a calibration."""
+    """Turns frames into measurements: an ONNX model (``shipped``: naoslam's) or the colour filter, with a calibration.
+
+    ``min_confidence`` None uses the model's own operating threshold, else the thesis's 0.85.
+    """
 
     model: str
     calibration: RangeCalibration | None = None
-    min_confidence: float = 0.85
+    min_confidence: float | None = None
 
     def measurer(self):
         """A function frame -> measurements."""
@@ -48,12 +52,15 @@ class FrontEnd:
             return self._colour_filter()
         from naoslam.detector import LandmarkDetector
 
-        detector = LandmarkDetector(self.model, conf=min(0.25, self.min_confidence))
+        detector = LandmarkDetector(None if self.model == "shipped" else self.model)
+        min_confidence = self.min_confidence if self.min_confidence is not None else \
+            float(detector.info.extra.get(OPERATING_CONF_KEY, THESIS_CONF))
+        detector.conf = min(detector.conf, min_confidence)
         calibration = self.calibration or detector.calibration
         if calibration is None:
             raise ValueError(f"{self.model}: no calibration in the model - run `poles calibrate --embed` "
                              "or pass --calibration")
-        model = MeasurementModel(calibration, self.min_confidence)
+        model = MeasurementModel(calibration, min_confidence)
         return lambda frame: model.measure(detector(frame), frame.shape[1])
 
     def _colour_filter(self):

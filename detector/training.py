@@ -19,6 +19,30 @@ from detector.training_curves import best_epoch, plot_training_curves
 
 #: Segmentation models that can be built from their YAML without a download.
 MODELS = ("yolov8n-seg", "yolov8s-seg", "yolov8m-seg")
+#: The pole-pretrained checkpoint shipped with the package (the source of naoslam's shipped ONNX models).
+SHIPPED_WEIGHTS = Path(__file__).resolve().parent / "weights" / "poles-yolov8n-seg.pt"
+#: Its architecture.
+SHIPPED_ARCHITECTURE = "yolov8n-seg"
+#: ``--weights`` value that trains from the YAML instead.
+SCRATCH = "scratch"
+
+
+def starting_point(model: str | None, weights: str | None) -> tuple[str, Path | None]:
+    """The architecture and checkpoint a run starts from.
+
+    No ``weights``: the shipped pole checkpoint when the architecture is its own (or not given), else the YAML.
+    ``weights="scratch"``: the YAML of ``model`` (default the shipped architecture). Otherwise the given checkpoint.
+    """
+    if weights == SCRATCH:
+        return model or SHIPPED_ARCHITECTURE, None
+    if weights is not None:
+        return model or SHIPPED_ARCHITECTURE, Path(weights)
+    if model in (None, SHIPPED_ARCHITECTURE):
+        if not SHIPPED_WEIGHTS.is_file():
+            raise FileNotFoundError(f"{SHIPPED_WEIGHTS}: the shipped pole checkpoint is missing - reinstall nao-poles "
+                                    "or pass --weights scratch")
+        return SHIPPED_ARCHITECTURE, SHIPPED_WEIGHTS
+    return model, None
 
 
 @dataclass(frozen=True)
@@ -35,6 +59,8 @@ class TrainSettings:
     workers: int = 0
     cache: bool = True
     time_hours: float | None = None
+    #: Ultralytics' device string: "cpu" (default), "0", "0,1" (DDP across GPUs) or "mps".
+    device: str = "cpu"
 
     def __post_init__(self) -> None:
         if self.model not in MODELS:
@@ -70,7 +96,8 @@ def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | 
                 resume: bool = False) -> Path:
     """Train (or resume) into the run folder ``out``; returns it. Writes ``training_curves.png`` beside results.csv."""
     out = Path(out).resolve()
-    use_all_cores(settings.threads)
+    if settings.device == "cpu":
+        use_all_cores(settings.threads)
     if resume:
         last = out / "weights" / "last.pt"
         YOLO(str(last)).train(resume=True, data=_resumable_data(last), workers=settings.workers,
@@ -86,7 +113,7 @@ def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | 
         for name in ("model", "threads"):
             options.pop(name)
         options["time"] = options.pop("time_hours")
-        model.train(data=str(data_yaml.resolve()), project=str(out.parent), name=out.name, exist_ok=True, device="cpu",
+        model.train(data=str(data_yaml.resolve()), project=str(out.parent), name=out.name, exist_ok=True,
                     amp=False, plots=False, deterministic=True, trainer=CpuSegmentationTrainer,
                     **options)
     plot_training_curves(out / "results.csv", out / "training_curves.png")

@@ -9,6 +9,7 @@ import logging
 import shutil
 import tempfile
 from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -76,6 +77,14 @@ def read_info(path: Path) -> ModelInfo:
     """The ModelInfo stored in an ONNX file."""
     proto = onnx.load(str(path), load_external_data=False)
     return ModelInfo.from_metadata({p.key: p.value for p in proto.metadata_props}, path)
+
+
+def add_metadata(model: Path, **entries) -> Path:
+    """Set extra entries (calibration, operating threshold) in ONNX ``model``'s naoslam metadata, in place, atomically.
+
+    The weights are untouched."""
+    info = read_info(model)
+    return write_metadata(model, replace(info, extra={**info.extra, **entries}), model)
 
 
 def write_metadata(source: Path, info: ModelInfo, out: Path) -> Path:

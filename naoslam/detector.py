@@ -18,9 +18,12 @@ import onnxruntime as ort
 from naoslam.landmarks import CLASSES
 from naoslam.measurement import RangeCalibration
 from naoslam.model_info import ModelInfo
+from naoslam.shipped import OPERATING_CONF_KEY, shipped_model
 
 #: Ultralytics' letterbox fill value.
 PAD_VALUE = 114
+#: Confidence threshold for a model that stores none (Ultralytics' predict default).
+DEFAULT_CONF = 0.25
 #: Number of mask prototypes of a YOLOv8-seg head.
 MASK_DIM = 32
 
@@ -135,20 +138,23 @@ def load_session(path: Path | str, threads: int | None = None) -> ort.InferenceS
 class LandmarkDetector:
     """Runs a YOLOv8-seg ONNX pole model on BGR frames.
 
-    ``classes`` is the class list the caller expects (default the six pole codes); a model trained on other names is
-    refused. Pass ``classes=None`` to accept any model.
+    ``model`` None runs the pole model shipped with naoslam. ``conf`` None uses the threshold stored in the model
+    (``operating_conf``), else ``DEFAULT_CONF``. ``classes`` is the class list the caller expects (default the six
+    pole codes); a model trained on other names is refused. Pass ``classes=None`` to accept any model.
     """
 
-    def __init__(self, model: Path | str, conf: float = 0.25, iou: float = 0.7, max_det: int = 300,
-                 classes: tuple[str, ...] | None = CLASSES, threads: int | None = None):
-        self.path = Path(model)
+    def __init__(self, model: Path | str | None = None, conf: float | None = None, iou: float = 0.7,
+                 max_det: int = 300, classes: tuple[str, ...] | None = CLASSES, threads: int | None = None):
+        self.path = Path(model) if model is not None else shipped_model()
         self.session = load_session(self.path, threads)
         self.info = ModelInfo.from_metadata(self.session.get_modelmeta().custom_metadata_map, self.path)
         if classes is not None and tuple(self.info.classes) != tuple(classes):
             raise ValueError(f"{self.path}: the model's classes {list(self.info.classes)} are not the pole classes "
                              f"{list(classes)} - train on a dataset whose data.yaml names them in this order")
         self._check_signature()
-        self.conf, self.iou, self.max_det = conf, iou, max_det
+        self.operating_conf = float(self.info.extra.get(OPERATING_CONF_KEY, DEFAULT_CONF))
+        self.conf = self.operating_conf if conf is None else conf
+        self.iou, self.max_det = iou, max_det
         self.input_name = self.session.get_inputs()[0].name
         self._letterboxes: dict[tuple[int, int], Letterbox] = {}
 

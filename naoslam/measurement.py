@@ -106,10 +106,14 @@ def bearing_of_column(column: float, image_width: int, hfov_deg: float, linear: 
     return float(camera.linear_bearing_of_column(column) if linear else camera.bearing_of_column(column))
 
 
+#: The thesis's confidence threshold for detections used in SLAM (YOLOv8s).
+THESIS_CONF = 0.85
+
+
 class MeasurementModel:
     """Turns front-end detections into measurements with a calibration (confidence threshold as the thesis: 0.85)."""
 
-    def __init__(self, calibration: RangeCalibration, min_confidence: float = 0.85, range_method: str = "fused",
+    def __init__(self, calibration: RangeCalibration, min_confidence: float = THESIS_CONF, range_method: str = "fused",
                  linear_bearing: bool = False):
         if range_method not in RANGE_METHODS:
             raise ValueError(f"range method {range_method!r} is not one of {', '.join(RANGE_METHODS)}")

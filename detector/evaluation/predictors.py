@@ -9,6 +9,7 @@ import numpy as np
 from naoslam.colour_filter import ColourFilter
 from naoslam.detector import LandmarkDetector, mask_centre_column, rotated_box_of_mask
 from naoslam.measurement import RangeCalibration
+from naoslam.shipped import OPERATING_CONF_KEY, shipped_model
 
 #: Lowest confidence kept, so that the precision/recall sweep and mAP see every detection.
 SWEEP_CONF = 0.01
@@ -32,6 +33,8 @@ class Predictor:
 
     name: str = ""
     calibration: RangeCalibration | None = None
+    #: The confidence threshold the front end is meant to run at (stored in the model), if it has one.
+    operating_conf: float | None = None
 
     def __call__(self, frame: np.ndarray) -> Prediction:
         raise NotImplementedError
@@ -44,6 +47,8 @@ class OnnxPredictor(Predictor):
         self.detector = LandmarkDetector(path, conf=SWEEP_CONF)
         self.name = Path(path).name
         self.calibration = self.detector.calibration
+        stored = self.detector.info.extra.get(OPERATING_CONF_KEY)
+        self.operating_conf = float(stored) if stored is not None else None
 
     def __call__(self, frame: np.ndarray) -> Prediction:
         found = self.detector(frame)
@@ -90,7 +95,9 @@ class ColourFilterPredictor(Predictor):
 
 
 def make_predictor(model: str, imgsz: int = 640, calibration: RangeCalibration | None = None) -> Predictor:
-    """``colour-filter``, a ``.pt`` checkpoint or an ``.onnx`` model."""
+    """``colour-filter``, ``shipped`` / ``shipped-int8`` (the models in naoslam), a ``.pt`` checkpoint or an ``.onnx``."""
+    if model in ("shipped", "shipped-int8"):
+        model = str(shipped_model(int8=model == "shipped-int8"))
     if model == "colour-filter":
         return ColourFilterPredictor(calibration)
     path = Path(model)
@@ -101,7 +108,7 @@ def make_predictor(model: str, imgsz: int = 640, calibration: RangeCalibration |
     elif path.suffix == ".onnx":
         predictor = OnnxPredictor(path)
     else:
-        raise ValueError(f"--model {model!r}: give a .pt checkpoint, an .onnx model or `colour-filter`")
+        raise ValueError(f"--model {model!r}: give a .pt checkpoint, an .onnx model, `shipped` or `colour-filter`")
     if calibration is not None:
         predictor.calibration = calibration
     return predictor

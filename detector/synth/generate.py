@@ -13,6 +13,7 @@ from detector.datasets.model import Instance
 from detector.datasets.polygons import mask_to_polygon
 from detector.parallel import default_workers, ordered_map
 from detector.preview import contact_sheet, draw_instances
+from detector.synth.backdrops import load_backdrop, sample_look
 from detector.synth.effects import apply_camera_effects, camera_effects
 from detector.synth.render import render_scene
 from detector.synth.scene import SceneConfig, calibration_scene, sample_scene
@@ -39,6 +40,16 @@ class SynthJob:
     hfov_deg: float = 56.3
     calibration_shots: bool = False
     config: SceneConfig = SceneConfig()
+    #: Real frames without poles to draw the objects over (``scan_backdrops``); empty: the modelled room.
+    backgrounds: tuple[Path, ...] = ()
+    #: Fraction of frames drawn over a backdrop when ``backgrounds`` is given; the rest are fully ray-cast.
+    backdrop_share: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.backdrop_share <= 1.0:
+            raise ValueError(f"--backdrop-share {self.backdrop_share} must lie between 0 and 1")
+        if not 1.0 <= self.hfov_deg <= 179.0:
+            raise ValueError(f"--hfov {self.hfov_deg} must lie between 1 and 179 degrees")
 
     @property
     def camera(self) -> PinholeCamera:
@@ -54,6 +65,9 @@ class RenderedSample:
     instances: list[Instance]
     truth: list[dict]
     camera: dict
+    width: int
+    height: int
+    backdrop: str | None
 
 
 def split_names(n: int, seed: int) -> list[str]:
@@ -74,14 +88,21 @@ def render_one(job: SynthJob, index: int) -> RenderedSample:
         _EFFECTS = camera_effects()
     rng = np.random.default_rng([job.seed, index])
     camera = job.camera
-    if job.calibration_shots:
+    backdrop_path = _pick_backdrop(job, index)
+    if backdrop_path is not None:
+        backdrop = load_backdrop(backdrop_path)
+        camera = PinholeCamera(backdrop.shape[1], backdrop.shape[0], job.hfov_deg)
+        scene = sample_scene(rng, camera, job.config, goal_posts_in_view=False)
+        frame = render_scene(scene, job.config.pole, backdrop=backdrop, look=sample_look(rng, backdrop))
+    elif job.calibration_shots:
         # Ranges vary fastest, so any number of shots covers every distance.
         range_m = CALIBRATION_RANGES_M[index % len(CALIBRATION_RANGES_M)]
         angle = CALIBRATION_ANGLES_DEG[(index // len(CALIBRATION_RANGES_M)) % len(CALIBRATION_ANGLES_DEG)]
         scene = calibration_scene(rng, camera, CLASSES[index % len(CLASSES)], range_m, angle, job.config)
     else:
         scene = sample_scene(rng, camera, job.config)
-    frame = render_scene(scene, job.config.pole)
+    if backdrop_path is None:
+        frame = render_scene(scene, job.config.pole)
     image = apply_camera_effects(_EFFECTS, (frame.image * 255.0 + 0.5).astype(np.uint8), scene.effects_seed)
     ok, encoded = cv2.imencode(".jpg", cv2.cvtColor(image, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, scene.jpeg_quality])
     instances, truth = [], []
@@ -101,7 +122,18 @@ def render_one(job: SynthJob, index: int) -> RenderedSample:
     pose = scene.pose
     camera_info = {"x": round(pose.x, 4), "y": round(pose.y, 4), "height_m": round(pose.z, 4), "yaw_rad": round(pose.yaw, 5),
                    "pitch_rad": round(pose.pitch, 5), "roll_rad": round(pose.roll, 5)}
-    return RenderedSample(index, encoded.tobytes(), instances, truth, camera_info)
+    return RenderedSample(index, encoded.tobytes(), instances, truth, camera_info, camera.width, camera.height,
+                          backdrop_path.name if backdrop_path is not None else None)
+
+
+def _pick_backdrop(job: SynthJob, index: int) -> Path | None:
+    """The backdrop of frame ``index`` (None: fully ray-cast), from its own random stream so scenes stay comparable."""
+    if not job.backgrounds or job.calibration_shots:
+        return None
+    rng = np.random.default_rng([job.seed, index, 0xBAC6])
+    if rng.random() >= job.backdrop_share:
+        return None
+    return job.backgrounds[int(rng.integers(len(job.backgrounds)))]
 
 
 def _render_star(args: tuple[SynthJob, int]) -> RenderedSample:
@@ -123,8 +155,9 @@ def generate_dataset(out: str | Path, job: SynthJob, *, workers: int | None = No
         for sample in tqdm(results, total=job.images, desc="rendering", unit="img", disable=not progress):
             name = f"{'calib' if job.calibration_shots else 'synth'}_{sample.index:05d}.jpg"
             writer.add(splits[sample.index], name, sample.jpeg, sample.instances)
-            annotations["images"][name] = {"split": splits[sample.index], "width": job.width, "height": job.height,
-                                           "camera": sample.camera, "landmarks": sample.truth}
+            annotations["images"][name] = {"split": splits[sample.index], "width": sample.width,
+                                           "height": sample.height, "camera": sample.camera, "backdrop": sample.backdrop,
+                                           "landmarks": sample.truth}
             if preview and len(tiles) < PREVIEW_IMAGES:
                 image = cv2.imdecode(np.frombuffer(sample.jpeg, np.uint8), cv2.IMREAD_COLOR)
                 tiles.append((draw_instances(image, sample.instances), name))
@@ -138,6 +171,7 @@ def _describe(job: SynthJob) -> dict:
     pole = job.config.pole
     return {"seed": job.seed, "images": job.images, "width": job.width, "height": job.height, "hfov_deg": job.hfov_deg,
             "focal_px": round(job.camera.focal_px, 3), "calibration_shots": job.calibration_shots,
+            "backgrounds": len(job.backgrounds), "backdrop_share": job.backdrop_share,
             "pole": {"diameter_m": pole.diameter, "band_height_m": pole.band_height, "base_height_m": pole.base_height}}
 
 
@@ -151,4 +185,5 @@ ANNOTATION_FIELDS = {
     "position_m": "pole base on the field (x, y)",
     "pixels": "visible mask area in pixels",
     "camera": "camera position on the field, height, yaw, pitch (down positive), roll",
+    "backdrop": "file name of the real frame the objects were drawn over (null: the modelled room)",
 }

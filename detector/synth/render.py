@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from detector.synth.backdrops import Look, composite
 from detector.synth.background import render_background
 from detector.synth.objects import Quad
 from detector.synth.raycast import Hit, cast_cylinder, cast_quad, world_rays
@@ -36,11 +37,20 @@ class Frame:
     poles: list[PoleTruth]
 
 
-def render_scene(scene: Scene, geometry: PoleGeometry = PoleGeometry()) -> Frame:
-    """Ray-cast the background, every quad and cylinder with a depth test; masks are what stays visible."""
+def render_scene(scene: Scene, geometry: PoleGeometry = PoleGeometry(), backdrop: np.ndarray | None = None,
+                 look: Look | None = None) -> Frame:
+    """Ray-cast the background, every quad and cylinder with a depth test; masks are what stays visible.
+
+    With a ``backdrop`` (a real frame of the camera's size, RGB 0..1) the objects are drawn over it in ``look``
+    instead of over the modelled room; the masks are the same either way.
+    """
     cam, pose = scene.camera, scene.pose
-    colour, depth = render_background(pose.position, world_rays((0, 0, cam.width, cam.height), pose, cam),
-                                      scene.room, scene.lighting)
+    if backdrop is None:
+        colour, depth = render_background(pose.position, world_rays((0, 0, cam.width, cam.height), pose, cam),
+                                          scene.room, scene.lighting)
+    else:
+        colour = np.zeros((cam.height, cam.width, 3), np.float32)
+        depth = np.full((cam.height, cam.width), np.inf, np.float32)
     owner = np.full((cam.height, cam.width), -1, np.int32)
     objects = [*scene.quads, *scene.cylinders]
     for index, obj in enumerate(objects):
@@ -64,6 +74,8 @@ def render_scene(scene: Scene, geometry: PoleGeometry = PoleGeometry()) -> Frame
         poles.append(PoleTruth(cylinder.label, visible, range_m, bearing, float(visible.sum()) / max(full_area, 1),
                                in_image_area < full_area, divide, float(math.dist(upper, lower)),
                                (float(cylinder.base[0]), float(cylinder.base[1]))))
+    if backdrop is not None:
+        colour = composite(backdrop, colour, owner >= 0, look)
     return Frame(np.clip(colour, 0.0, 1.0), poles)
 
 

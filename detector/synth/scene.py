@@ -23,7 +23,7 @@ class SceneConfig:
     camera_height: tuple[float, float] = (0.45, 0.55)
     pitch_deg: tuple[float, float] = (-2.0, 22.0)
     max_roll_deg: float = 7.0
-    range_m: tuple[float, float] = (0.4, 6.0)
+    range_m: tuple[float, float] = (0.4, 9.0)
     max_poles: int = 4
     p_no_pole: float = 0.12
     p_lean: float = 0.15
@@ -47,8 +47,12 @@ class Scene:
     effects: bool = True
 
 
-def sample_scene(rng: np.random.Generator, camera: PinholeCamera, config: SceneConfig = SceneConfig()) -> Scene:
-    """A random field scene with 0..max_poles landmarks in or near the view and some distractors."""
+def sample_scene(rng: np.random.Generator, camera: PinholeCamera, config: SceneConfig = SceneConfig(),
+                 goal_posts_in_view: bool = True) -> Scene:
+    """A random field scene with 0..max_poles landmarks in or near the view and some distractors.
+
+    ``goal_posts_in_view=False`` leaves the field's goals out (a real backdrop has its own).
+    """
     pose = CameraPose(x=rng.uniform(-4.5, 4.5), y=rng.uniform(-3.0, 3.0), z=rng.uniform(*config.camera_height),
                       yaw=rng.uniform(-math.pi, math.pi), pitch=math.radians(rng.uniform(*config.pitch_deg)),
                       roll=math.radians(rng.normal(0.0, config.max_roll_deg / 2.5)))
@@ -68,7 +72,8 @@ def sample_scene(rng: np.random.Generator, camera: PinholeCamera, config: SceneC
         spot = _free_spot(rng, pose, camera, config, occupied)
         if spot is not None:
             _add_distractor(rng, scene, spot, pose)
-    scene.cylinders += goal_posts(FieldGeometry())
+    if goal_posts_in_view:
+        scene.cylinders += goal_posts(FieldGeometry())
     return scene
 
 

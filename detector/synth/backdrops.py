@@ -1,0 +1,112 @@
+"""Real robot-camera frames without poles as backdrops: rendered poles composited so the result reads as one photo.
+
+The ray-caster draws the objects (poles, look-alikes) over a real frame instead of the modelled room. Labels stay
+exact because the masks come from the ray-caster; the frame only changes how the objects look: their light and
+white balance follow the frame's, a back-lit frame darkens them and lowers their contrast, and their edges get the
+frame's softness. Pixels more than ``FEATHER_REACH_PX`` from every object keep the frame's values (before the camera
+effects that apply to the whole image).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+#: File types read as backdrops; anything else in the folder (a README, notes) is ignored.
+IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp")
+#: Smallest backdrop accepted (a pole at range must still be resolvable).
+MIN_WIDTH, MIN_HEIGHT = 160, 120
+#: Backdrops narrower than this are upscaled to it: the detector runs on 640x480 frames.
+RENDER_MIN_WIDTH = 640
+#: How far (px) the soft object edges reach into the frame.
+FEATHER_REACH_PX = 3
+
+
+class BackdropError(ValueError):
+    """A backdrop folder or file that cannot be used, with the fix in the message."""
+
+
+@dataclass(frozen=True)
+class Look:
+    """How the objects must look to belong in one frame: light level, colour cast, back light, softness, paint.
+
+    ``saturation`` < 1 mixes the modelled paint towards grey: real paint under room light is less vivid.
+    """
+
+    light_scale: float
+    channel_gain: tuple[float, float, float]
+    backlight_gain: float
+    haze: float
+    haze_rgb: tuple[float, float, float]
+    blur_sigma: float
+    saturation: float
+
+
+def scan_backdrops(folder: Path) -> tuple[Path, ...]:
+    """Every usable image in ``folder`` and its subfolders (sorted), or a ``BackdropError`` naming the first bad file."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise BackdropError(f"--backgrounds {folder}: no such folder - point it at frames recorded without poles")
+    paths = tuple(sorted(p for p in folder.rglob("*") if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES))
+    if not paths:
+        raise BackdropError(f"--backgrounds {folder}: no images ({', '.join(IMAGE_SUFFIXES)}) in it - "
+                            "add robot-camera frames without poles")
+    for path in paths:
+        image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+        if image is None:
+            raise BackdropError(f"{path}: not a readable image - remove it from the backgrounds folder or re-save it")
+        height, width = image.shape[:2]
+        if width < MIN_WIDTH or height < MIN_HEIGHT:
+            raise BackdropError(f"{path}: {width}x{height} is too small for a backdrop (at least {MIN_WIDTH}x{MIN_HEIGHT}) "
+                                "- remove it or use the camera's full-size frames")
+    return paths
+
+
+@lru_cache(maxsize=8)
+def load_backdrop(path: Path) -> np.ndarray:
+    """The frame as RGB float32 in 0..1, upscaled to at least ``RENDER_MIN_WIDTH`` wide (aspect kept)."""
+    image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if image is None:
+        raise BackdropError(f"{path}: not a readable image - remove it from the backgrounds folder")
+    height, width = image.shape[:2]
+    if width < RENDER_MIN_WIDTH:
+        scale = RENDER_MIN_WIDTH / width
+        image = cv2.resize(image, (RENDER_MIN_WIDTH, round(height * scale)), interpolation=cv2.INTER_CUBIC)
+    rgb = cv2.cvtColor(image, cv2.COLOR_BGR2RGB).astype(np.float32) / 255.0
+    rgb.setflags(write=False)
+    return rgb
+
+
+def sample_look(rng: np.random.Generator, backdrop: np.ndarray, p_backlight: float = 0.2) -> Look:
+    """The objects' look for this frame: light from its brightness, cast from its grey-world balance, maybe back light."""
+    means = backdrop.reshape(-1, 3).mean(axis=0)
+    luminance = float(means @ np.array([0.299, 0.587, 0.114]))
+    light_scale = float(np.clip(luminance / 0.45, 0.45, 1.35) * rng.uniform(0.85, 1.15))
+    gain = np.clip(means / max(float(means.mean()), 1e-3), 0.75, 1.3) ** rng.uniform(0.3, 0.8)
+    backlit = rng.random() < p_backlight
+    return Look(light_scale=light_scale, channel_gain=tuple(float(g) for g in gain),
+                backlight_gain=float(rng.uniform(0.25, 0.6)) if backlit else 1.0,
+                haze=float(rng.uniform(0.1, 0.35)) if backlit else 0.0,
+                haze_rgb=tuple(float(c) for c in means), blur_sigma=float(rng.uniform(0.35, 1.1)),
+                saturation=float(rng.uniform(0.5, 1.0)))
+
+
+def composite(backdrop: np.ndarray, objects_rgb: np.ndarray, coverage: np.ndarray, look: Look) -> np.ndarray:
+    """The frame with the objects drawn in: ``objects_rgb`` where ``coverage`` (bool mask), in the frame's look.
+
+    Returns a new float image; ``backdrop`` is not modified. Only pixels within ``FEATHER_REACH_PX`` of the
+    coverage differ from the backdrop.
+    """
+    grey = objects_rgb.mean(axis=-1, keepdims=True)
+    paint = grey + look.saturation * (objects_rgb - grey)
+    lit = paint * (look.light_scale * look.backlight_gain) * np.asarray(look.channel_gain, np.float32)
+    lit = (1.0 - look.haze) * lit + look.haze * np.asarray(look.haze_rgb, np.float32)
+    alpha = coverage.astype(np.float32)
+    if look.blur_sigma > 0:
+        lit = cv2.GaussianBlur(np.where(coverage[..., None], lit, backdrop).astype(np.float32), (0, 0), look.blur_sigma)
+        alpha = cv2.GaussianBlur(alpha, (2 * FEATHER_REACH_PX + 1,) * 2, look.blur_sigma)
+    alpha = alpha[..., None]
+    return np.clip(alpha * lit + (1.0 - alpha) * backdrop, 0.0, 1.0).astype(np.float32)

@@ -1,0 +1,101 @@
+"""The pole model shipped in the package: present, within its size budget, torch-free, found poles, used by default."""
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+
+import cv2
+import numpy as np
+import pytest
+import yaml
+
+from detector.cli import main
+from detector.synth.render import render_scene
+from detector.synth.scene import calibration_scene
+from detector.training import SHIPPED_WEIGHTS, TrainSettings, train_model
+from export.ship import SIZE_BUDGET
+from naoslam.camera import PinholeCamera
+from naoslam.shipped import OPERATING_CONF_KEY, shipped_model
+
+
+def test_shipped_files_exist_within_the_size_budget():
+    files = [SHIPPED_WEIGHTS, shipped_model(), shipped_model(int8=True)]
+    assert sum(p.stat().st_size for p in files) < SIZE_BUDGET
+    assert shipped_model(int8=True).stat().st_size < shipped_model().stat().st_size / 2
+
+
+@pytest.mark.parametrize("code", ["bp", "pg", "yp"])
+def test_shipped_onnx_finds_a_rendered_pole_without_torch(code, tmp_path):
+    camera = PinholeCamera(640, 480)
+    scene = calibration_scene(np.random.default_rng(3), camera, code, range_m=1.5, angle_deg=-10.0)
+    frame = render_scene(scene)
+    image = cv2.cvtColor((frame.image * 255 + 0.5).astype(np.uint8), cv2.COLOR_RGB2BGR)
+    cv2.imwrite(str(tmp_path / "frame.png"), image)
+    np.save(tmp_path / "mask.npy", frame.poles[0].mask)
+    code_run = (
+        "import json, sys, cv2, numpy as np; from naoslam.detector import LandmarkDetector; "
+        f"d = LandmarkDetector(); found = d(cv2.imread({str(tmp_path / 'frame.png')!r})); "
+        f"truth = np.load({str(tmp_path / 'mask.npy')!r}); "
+        "ious = [float((f.full_mask(truth.shape) & truth).sum() / (f.full_mask(truth.shape) | truth).sum()) for f in found]; "
+        "print(json.dumps({'names': [f.name for f in found], 'ious': ious, 'conf': d.conf, "
+        "'training_side': [m for m in ('torch', 'ultralytics', 'detector') if m in sys.modules]}))")
+    result = subprocess.run([sys.executable, "-c", code_run], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    found = json.loads(result.stdout.strip().splitlines()[-1])
+    assert found["training_side"] == []
+    assert found["names"] == [code]
+    assert found["ious"][0] > 0.8
+    assert 0.0 < found["conf"] < 1.0
+
+
+def test_shipped_onnx_carries_calibration_and_its_threshold():
+    from naoslam.detector import LandmarkDetector
+
+    detector = LandmarkDetector()
+    assert detector.conf == detector.info.extra[OPERATING_CONF_KEY]
+    assert detector.calibration is not None
+    range_m, _, _ = detector.calibration.range_from_box(20.0, 100.0, 640)
+    assert 1.0 < range_m < 6.0
+    assert LandmarkDetector(conf=0.9).conf == 0.9
+
+
+@pytest.mark.parametrize("weights, started_from", [(None, SHIPPED_WEIGHTS.name), ("scratch", "yolov8n-seg.yaml")])
+def test_train_fine_tunes_from_the_shipped_weights_unless_told_scratch(weights, started_from, synth_dataset, tmp_path,
+                                                                       capsys):
+    argv = ["train", "--data", str(synth_dataset), "--out", str(tmp_path / "run"), "--epochs", "1", "--imgsz", "64",
+            "--batch", "8"] + (["--weights", weights] if weights else [])
+    assert main(argv) == 0
+    assert started_from in capsys.readouterr().out
+    assert (tmp_path / "run" / "weights" / "best.pt").is_file()
+    model = yaml.safe_load((tmp_path / "run" / "args.yaml").read_text())["model"]
+    assert model.endswith(SHIPPED_WEIGHTS.name if weights is None else "yolov8n-seg.yaml")
+
+
+def test_device_passes_through_to_ultralytics(synth_dataset, tmp_path, monkeypatch):
+    from ultralytics import YOLO
+
+    seen = {}
+
+    class Stop(Exception):
+        pass
+
+    def capture(self, **kwargs):
+        seen.update(kwargs)
+        raise Stop
+
+    monkeypatch.setattr(YOLO, "train", capture)
+    with pytest.raises(Stop):
+        train_model(synth_dataset, tmp_path / "run", TrainSettings(model="yolov8n-seg", device="0,1"))
+    assert seen["device"] == "0,1"
+
+
+def test_evaluate_uses_the_shipped_model_at_its_threshold(synth_dataset, tmp_path):
+    assert main(["evaluate", "--data", str(synth_dataset), "--out", str(tmp_path / "eval")]) == 0
+    metrics = json.loads((tmp_path / "eval" / "metrics.json").read_text())
+    from naoslam.detector import LandmarkDetector
+
+    assert metrics["model"] == shipped_model().name
+    assert math.isclose(metrics["conf"], LandmarkDetector().conf)
+    assert metrics["tp"] > 0
