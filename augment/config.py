@@ -41,7 +41,11 @@ class AugmentConfig:
     def from_yaml(cls, path: str | Path, **overrides) -> "AugmentConfig":
         """Read settings from a YAML mapping (keys as the field names); ``overrides`` win."""
         path = Path(path)
-        data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+        try:
+            data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+        except (UnicodeDecodeError, yaml.YAMLError) as exc:
+            raise ValueError(f"{path}: not a readable YAML file ({str(exc).splitlines()[0]}) - "
+                             "write settings like `rotate_deg: 15`") from None
         if not isinstance(data, dict):
             raise ValueError(f"{path}: expected a mapping of settings, e.g. `rotate_deg: 15`")
         known = {f.name for f in fields(cls)}
@@ -50,8 +54,11 @@ class AugmentConfig:
             raise ValueError(f"{path}: unknown setting(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
         data.update({k: v for k, v in overrides.items() if v is not None})
         if "ops" in data:
-            data["ops"] = tuple(data["ops"])
-        return cls(**data)
+            data["ops"] = tuple(data["ops"]) if isinstance(data["ops"], (list, tuple)) else (data["ops"],)
+        try:
+            return cls(**data)
+        except TypeError as exc:
+            raise ValueError(f"{path}: {exc} - check the values' types") from None
 
     def as_dict(self) -> dict:
         return asdict(self)

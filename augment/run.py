@@ -11,7 +11,7 @@ from tqdm import tqdm
 
 from augment.config import AugmentConfig
 from augment.pipeline import augment_copy, choose_operations
-from detector.datasets import load_dataset
+from detector.datasets.intake import open_dataset
 from detector.datasets.io import DatasetWriter
 from detector.datasets.model import Instance, Sample
 from detector.parallel import default_workers, ordered_map
@@ -57,7 +57,7 @@ def augment_dataset(data: str | Path, out: str | Path, *, copies: int = 7, seed:
     """Write the augmented dataset to ``out`` and return a summary (also written as ``augment.json``)."""
     if copies < 0:
         raise ValueError(f"--copies must be 0 or more, not {copies}")
-    dataset = load_dataset(data).require_clean()
+    dataset = open_dataset(data, progress=progress)
     train = dataset.split("train")
     if not train:
         raise ValueError(f"{dataset.root}: the train split is empty: nothing to augment")
@@ -65,7 +65,7 @@ def augment_dataset(data: str | Path, out: str | Path, *, copies: int = 7, seed:
                "instances_into_copies": 0, "instances_kept": 0, "instances_dropped": 0, "operations": Counter()}
     tiles = []
     tasks = (_Task(sample, index, copies, seed, config) for index, sample in enumerate(train))
-    with DatasetWriter(out, force=force, protect=(dataset.root,)) as writer:
+    with DatasetWriter(out, force=force, protect=dataset.input_folders()) as writer:
         for sample in dataset.samples:
             if sample.image is not None:
                 writer.copy_sample(sample)

@@ -21,15 +21,19 @@ def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv:
     """Fit from ``data`` and write ``out`` (calibration + report); returns what was written."""
     if Path(out).exists() and not force:
         raise FileExistsError(f"{out} exists - pick another --out or add --force")
+    if embed:
+        from export.onnx_export import read_info
+
+        read_info(embed)  # refuse a model that cannot take the calibration before anything is written
     samples = collect_samples(data, model, truth_csv)
     calibration, report = calibrate(samples)
     report["source"] = f"masks of {model}" if model else "label masks"
     result = {"calibration": calibration.to_dict(), "report": report}
+    if embed:
+        embed_calibration(embed, calibration)
     write_json(out, result)
     if plot:
         plot_fit(samples, calibration, plot)
-    if embed:
-        embed_calibration(embed, calibration)
     return result
 
 

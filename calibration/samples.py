@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from detector.datasets import load_dataset
+from detector.datasets.intake import open_dataset
 from detector.datasets.polygons import polygon_to_mask
 from detector.datasets.truth import load_truth
 from naoslam.detector import LandmarkDetector, mask_centre_column, rotated_box_of_mask
@@ -33,7 +33,7 @@ class SizeSample:
 def collect_samples(data: Path, model: Path | None = None, truth_csv: Path | None = None,
                     conf: float = 0.25, progress: bool = True) -> list[SizeSample]:
     """Measure every pole with a true range: its labelled mask, or the model's best same-class detection."""
-    dataset = load_dataset(data).require_clean()
+    dataset = open_dataset(data, progress=progress)
     truth = load_truth(dataset, truth_csv)
     if not any(t and t.get("range_m") is not None for entries in truth.values() for t in entries):
         raise ValueError(f"{data}: no landmark has a true range - add annotations.json (from `poles synth "
@@ -58,13 +58,25 @@ def collect_samples(data: Path, model: Path | None = None, truth_csv: Path | Non
                 box, column = (same[0].rotated_box, same[0].centre_column) if same else (None, None)
             if box is None:
                 continue
+            partial = entry.get("partial")
+            if partial is None:  # a truth CSV does not say: a pole whose outline reaches the border is cut
+                partial = touches_border(instance.polygon)
             samples.append(SizeSample(sample.image.name, instance.cls, float(entry["range_m"]), box.width, box.height,
-                                      column, width, bool(entry.get("partial", False)), entry.get("bearing_rad"),
+                                      column, width, bool(partial), entry.get("bearing_rad"),
                                       entry.get("band_centre_distance_px")))
     if not samples:
         raise ValueError(f"{data}: no pole with a true range could be measured"
                          + (f" - {model} found none of them" if model else ""))
     return samples
+
+
+#: How close (normalised) an outline must come to the image border to count as cut by it.
+BORDER_MARGIN = 0.002
+
+
+def touches_border(polygon: np.ndarray) -> bool:
+    """True when a normalised outline reaches the image border (the pole is cut, its height is not its own)."""
+    return bool(polygon.min() <= BORDER_MARGIN or polygon.max() >= 1.0 - BORDER_MARGIN)
 
 
 def as_arrays(samples: list[SizeSample], reference_width: int) -> dict[str, np.ndarray]:

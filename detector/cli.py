@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from augment.config import OPERATIONS, AugmentConfig
-from detector.datasets.model import DatasetError
+from detector.errors import run_command
 
 
 
@@ -57,6 +57,8 @@ def build_parser() -> argparse.ArgumentParser:
     convert = sub.add_parser("convert", help="write any readable dataset (e.g. a COCO export) in the Roboflow YOLOv8 layout")
     convert.add_argument("data", type=Path)
     convert.add_argument("--out", type=Path, required=True)
+    convert.add_argument("--rename", action="append", metavar="OLD=NEW",
+                         help="read the export's class OLD as landmark NEW (e.g. pink-blue=pb); repeat for each")
     convert.add_argument("--force", action="store_true")
 
     augment = sub.add_parser("augment", help="add N augmented copies of every training image (labels kept exact)")
@@ -167,6 +169,8 @@ def build_parser() -> argparse.ArgumentParser:
                       help="fast: about 15 minutes on two cores (default); full: the thesis's settings (days)")
     demo.add_argument("--seed", type=int, default=0)
 
+    for command in sub.choices.values():
+        command.add_argument("--debug", action="store_true", help="show the traceback of an unexpected error")
     return parser
 
 
@@ -211,11 +215,7 @@ def _slam(args: argparse.Namespace) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    try:
-        return COMMANDS[args.command](args)
-    except (DatasetError, FileExistsError, FileNotFoundError, ValueError) as exc:
-        print(f"poles {args.command}: {exc}", file=sys.stderr)
-        return 2
+    return run_command(args.command, lambda: COMMANDS[args.command](args), debug=args.debug)
 
 
 def _synth(args: argparse.Namespace) -> int:
@@ -238,16 +238,19 @@ def _check(args: argparse.Namespace) -> int:
     if args.fix and args.out is None:
         raise ValueError("--fix needs --out CLEAN: the cleaned copy is never written in place")
     report = check_dataset(args.data)
-    print_report(report, show_notes=args.notes)
+    beside = Path(f"{args.out}.check.txt") if args.fix else Path(f"check-{Path(args.data).resolve().name}.txt")
+    print_report(report, show_notes=args.notes, full_list=beside)
     if args.fix:
         print(f"cleaned copy: {write_fixed_copy(report, args.out, force=args.force)}")
     return 1 if report.errors else 0
 
 
 def _convert(args: argparse.Namespace) -> int:
-    from detector.datasets import load_dataset, write_dataset
+    from detector.datasets import write_dataset
+    from detector.datasets.intake import open_dataset
+    from detector.datasets.names import parse_renames
 
-    dataset = load_dataset(args.data).require_clean()
+    dataset = open_dataset(args.data, parse_renames(args.rename))
     print(f"wrote {write_dataset(args.out, dataset, force=args.force)}")
     return 0
 

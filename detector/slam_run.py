@@ -6,6 +6,7 @@ The runtime pieces are naoslam's; this module adds what the robot does not need:
 from __future__ import annotations
 
 import csv
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -108,15 +109,18 @@ def image_sequences(config: SimConfig, front_ends: list[FrontEnd], progress: boo
 def recorded_sequence(frames_dir: Path, odometry_csv: Path, front_end: FrontEnd, time_offset_s: float) -> Sequence:
     """Frames named by their time stamp (``12.533.jpg``) and an odometry CSV ``t,x,y,theta``, merged in time."""
     rows = []
-    with Path(odometry_csv).open(newline="") as handle:
+    with Path(odometry_csv).open(newline="", encoding="utf-8-sig", errors="replace") as handle:
         reader = csv.DictReader(handle)
         if not reader.fieldnames or not {"t", "x", "y", "theta"} <= set(reader.fieldnames):
             raise ValueError(f"{odometry_csv}:1: header must be t,x,y,theta (got {reader.fieldnames})")
         for line, row in enumerate(reader, start=2):
             try:
-                rows.append([float(row[k]) for k in ("t", "x", "y", "theta")])
-            except ValueError:
-                raise ValueError(f"{odometry_csv}:{line}: not numbers in t,x,y,theta") from None
+                values = [float(row[k]) for k in ("t", "x", "y", "theta")]
+                if not all(math.isfinite(v) for v in values):
+                    raise ValueError
+                rows.append(values)
+            except (TypeError, ValueError):
+                raise ValueError(f"{odometry_csv}:{line}: not finite numbers in t,x,y,theta") from None
     if len(rows) < 2:
         raise ValueError(f"{odometry_csv}: needs at least two odometry rows")
     rows.sort()

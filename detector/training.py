@@ -8,6 +8,7 @@ loaded from a local checkpoint, AMP checks and plots (which fetch a font) are of
 from __future__ import annotations
 
 import os
+import shutil
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -15,6 +16,8 @@ from ultralytics import YOLO
 from ultralytics.models.yolo.segment import SegmentationTrainer
 from ultralytics.utils import DEFAULT_CFG, torch_utils
 
+from detector.cpu_threads import ThreadTuner
+from detector.datasets.intake import open_dataset, training_view
 from detector.training_curves import best_epoch, plot_training_curves
 
 #: Segmentation models that can be built from their YAML without a download.
@@ -93,44 +96,87 @@ class CpuSegmentationTrainer(SegmentationTrainer):
 
 
 def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | None = None,
-                resume: bool = False) -> Path:
-    """Train (or resume) into the run folder ``out``; returns it. Writes ``training_curves.png`` beside results.csv."""
+                resume: bool = False, progress: bool = True) -> Path:
+    """Train (or resume) into the run folder ``out``; returns it. Writes ``training_curves.png`` beside results.csv.
+
+    The dataset is checked as every command checks it (``intake.open_dataset``) and Ultralytics reads a view of it
+    inside the run (``out/dataset``), so its caches never land in the input. A plain rerun replaces a run that did
+    not finish; a finished run is kept (pick a new ``out``).
+    """
     out = Path(out).resolve()
+    tuner = None
     if settings.device == "cpu":
-        use_all_cores(settings.threads)
+        threads = use_all_cores(settings.threads)
+        tuner = ThreadTuner(threads) if settings.threads is None else None
     if resume:
         last = out / "weights" / "last.pt"
-        YOLO(str(last)).train(resume=True, data=_resumable_data(last), workers=settings.workers,
-                              trainer=CpuSegmentationTrainer)
+        data_yaml = _resumable_data(last)  # before Ultralytics sees the path: it would look for a missing file online
+        _train(YOLO(str(last)), tuner, resume=True, data=data_yaml, workers=settings.workers,
+               trainer=CpuSegmentationTrainer)
     else:
-        data_yaml = _data_yaml(Path(data))
-        if out.exists() and any(out.iterdir()):
-            raise FileExistsError(f"{out} already holds a run - pick a new --out or add --resume to continue it")
         if weights and not Path(weights).is_file():
             raise FileNotFoundError(f"{weights}: no such checkpoint (nothing is downloaded: pass a local .pt)")
+        if weights:
+            read_checkpoint(Path(weights))  # a clear error for a file that is not a checkpoint
+        dataset = open_dataset(data, progress=progress)
+        _clear_unfinished_run(out)
+        data_yaml = training_view(dataset, out / "dataset")
         model = YOLO(str(weights) if weights else f"{settings.model}.yaml", task="segment")
         options = asdict(settings)
         for name in ("model", "threads"):
             options.pop(name)
         options["time"] = options.pop("time_hours")
-        model.train(data=str(data_yaml.resolve()), project=str(out.parent), name=out.name, exist_ok=True,
-                    amp=False, plots=False, deterministic=True, trainer=CpuSegmentationTrainer,
-                    **options)
+        _train(model, tuner, data=str(data_yaml), project=str(out.parent), name=out.name, exist_ok=True,
+               amp=False, plots=False, deterministic=True, trainer=CpuSegmentationTrainer, **options)
     plot_training_curves(out / "results.csv", out / "training_curves.png")
     return out
 
 
-def _data_yaml(data: Path) -> Path:
-    path = data / "data.yaml" if data.is_dir() else data
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no data.yaml - pass a dataset folder written by `poles synth`, "
-                                "`poles augment` or a Roboflow YOLOv8 export")
-    return path
+def _train(model: YOLO, tuner: ThreadTuner | None, **options) -> None:
+    """``model.train(**options)``, with the thread tuner watching every batch when there is one."""
+    if tuner is not None:
+        model.add_callback("on_train_batch_end", tuner)
+    model.train(**options)
+
+
+def _clear_unfinished_run(out: Path) -> None:
+    """Remove what an unfinished run left in ``out``; refuse when ``out`` holds a finished run or other files."""
+    if not out.exists():
+        return
+    if not out.is_dir():
+        raise FileExistsError(f"--out {out} is a file: give a folder for the run")
+    if not any(out.iterdir()):
+        return
+    last = out / "weights" / "last.pt"
+    if last.is_file() and _finished(last):
+        raise FileExistsError(f"{out} already holds a finished run - pick a new --out, or fine-tune it with "
+                              f"--weights {out / 'weights' / 'best.pt'}")
+    if not (out / "args.yaml").is_file() and not (out / "dataset").is_dir():
+        raise FileExistsError(f"{out} holds files that are not a training run - pick a new --out")
+    print(f"replacing the unfinished run in {out}" + (" (--resume would continue it from last.pt)" if last.is_file() else ""))
+    shutil.rmtree(out)
+
+
+def _finished(last: Path) -> bool:
+    """True when the checkpoint is the final one of its run (Ultralytics marks it with epoch -1)."""
+    try:
+        return read_checkpoint(last).get("epoch", -1) < 0
+    except Exception:  # an unreadable checkpoint belongs to an unfinished run
+        return False
 
 
 def read_checkpoint(path: Path) -> dict:
     """A local Ultralytics checkpoint as a dict (plain torch.load on the CPU: never a download)."""
-    return torch_utils.torch.load(str(path), map_location="cpu", weights_only=False)
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"{path}: no such checkpoint - pass a best.pt or last.pt written by `poles train`")
+    try:
+        checkpoint = torch_utils.torch.load(str(path), map_location="cpu", weights_only=False)
+    except Exception as exc:  # torch raises pickle, zip and runtime errors for files that are not checkpoints
+        raise ValueError(f"{path}: not a readable PyTorch checkpoint ({type(exc).__name__}) - "
+                         "pass a best.pt or last.pt written by `poles train`") from None
+    if not isinstance(checkpoint, dict) or "model" not in checkpoint and "ema" not in checkpoint:
+        raise ValueError(f"{path}: not an Ultralytics checkpoint (no model inside) - pass a .pt written by `poles train`")
+    return checkpoint
 
 
 def _resumable_data(last: Path) -> str:

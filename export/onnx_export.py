@@ -74,8 +74,13 @@ def _model_name(model) -> str:
 
 
 def read_info(path: Path) -> ModelInfo:
-    """The ModelInfo stored in an ONNX file."""
-    proto = onnx.load(str(path), load_external_data=False)
+    """The ModelInfo stored in an ONNX file; ValueError naming the file when it is not an ONNX model."""
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"{path}: no such model file - export one with `poles export --weights best.pt`")
+    try:
+        proto = onnx.load(str(path), load_external_data=False)
+    except Exception as exc:  # protobuf raises its own decode errors
+        raise ValueError(f"{path}: not a readable ONNX model ({type(exc).__name__}) - re-export it with `poles export`") from None
     return ModelInfo.from_metadata({p.key: p.value for p in proto.metadata_props}, path)
 
 

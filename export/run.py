@@ -8,7 +8,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from detector.datasets import load_dataset
+from detector.datasets.intake import open_dataset
 from export.onnx_export import NAO_INPUT_HW, export_onnx, refuse_overwrite
 from export.quantize import quantize_int8
 from export.verify import (FP32_TOLERANCE, INT8_TOLERANCE, compare, frontend_predict, median_latency_ms,
@@ -36,6 +36,13 @@ class ExportJob:
     conf: float = 0.25
     force: bool = False
 
+    def __post_init__(self) -> None:
+        if any(side < 32 or side % 32 for side in self.input_hw):
+            raise ValueError(f"--imgsz {self.input_hw[0]} {self.input_hw[1]}: height and width must be positive "
+                             "multiples of the stride 32 (the Nao's frames: 480 640)")
+        if not 0.0 < self.conf < 1.0:
+            raise ValueError(f"--conf {self.conf} must lie between 0 and 1")
+
     @property
     def int8_path(self) -> Path:
         return self.out.with_name(f"{self.out.stem}-int8.onnx")
@@ -47,7 +54,7 @@ class ExportJob:
 
 def dataset_images(data: Path, splits: tuple[str, ...], limit: int) -> list[Path]:
     """Up to ``limit`` image paths from the given splits, spread evenly over them in file order."""
-    samples = [s for s in load_dataset(data).samples if s.split in splits]
+    samples = [s for s in open_dataset(data, progress=False).samples if s.split in splits and s.image]
     if not samples:
         raise ValueError(f"{data}: no images in the {'/'.join(splits)} split(s)")
     picks = np.linspace(0, len(samples) - 1, min(limit, len(samples))).round().astype(int)
@@ -75,6 +82,9 @@ def read_frames(paths: list[Path]) -> list[np.ndarray]:
 def run_export(job: ExportJob) -> dict:
     """Export, verify, optionally quantise; returns the report (also written to ``job.report_path``)."""
     refuse_overwrite(job.out, job.force)
+    from detector.training import read_checkpoint
+
+    read_checkpoint(job.weights)  # a clear error for a missing file or one that is not a checkpoint
     if job.int8:
         refuse_overwrite(job.int8_path, job.force)
     data = job.data or training_dataset(job.weights)

@@ -18,18 +18,35 @@ UTIAS_FILES = ("Odometry.dat", "Measurement.dat", "Barcodes.dat", "Landmark_Grou
 def _table(path: Path, columns: int) -> np.ndarray:
     """Rows of a whitespace-separated .dat file, '#' lines skipped; errors name the file and line."""
     rows = []
-    for number, line in enumerate(path.read_text().splitlines(), start=1):
+    try:
+        text_lines = path.read_text(encoding="utf-8").splitlines()
+    except UnicodeDecodeError:
+        raise ValueError(f"{path}: not a text file - give the MRCLAM .dat files as downloaded") from None
+    for number, line in enumerate(text_lines, start=1):
         text = line.strip()
         if not text or text.startswith("#"):
             continue
         parts = text.split()
         try:
-            rows.append([float(v) for v in parts[:columns]])
+            values = [float(v) for v in parts[:columns]]
         except ValueError:
             raise ValueError(f"{path}:{number}: {text[:60]!r} is not {columns} numbers") from None
         if len(parts) < columns:
             raise ValueError(f"{path}:{number}: expected {columns} columns, found {len(parts)}")
+        if not all(math.isfinite(v) for v in values):
+            raise ValueError(f"{path}:{number}: {text[:60]!r} holds nan or inf - repair or delete the line")
+        rows.append(values)
     return np.array(rows).reshape(-1, columns)
+
+
+def _require_time_order(path: Path, times: np.ndarray) -> None:
+    """Odometry must run forward in time: a stamp out of order would feed the filter a negative time step."""
+    if len(times) < 2:
+        raise ValueError(f"{path}: needs at least two odometry rows, found {len(times)}")
+    backwards = np.flatnonzero(np.diff(times) < 0)
+    if backwards.size:
+        raise ValueError(f"{path}: time stamp {times[backwards[0] + 1]} comes after {times[backwards[0]]} (row "
+                         f"{backwards[0] + 2} of the data) - sort the file by time")
 
 
 def load_utias(folder: Path, range_std: float = 0.1, bearing_std: float = math.radians(3.0),
@@ -42,6 +59,7 @@ def load_utias(folder: Path, range_std: float = 0.1, bearing_std: float = math.r
     if missing:
         raise FileNotFoundError(f"{folder}: not a UTIAS MRCLAM folder, missing {', '.join(missing)}")
     odometry = _table(folder / "Odometry.dat", 3)
+    _require_time_order(folder / "Odometry.dat", odometry[:, 0])
     measurements = _table(folder / "Measurement.dat", 4)
     barcodes = _table(folder / "Barcodes.dat", 2)
     truth = _table(folder / "Landmark_Groundtruth.dat", 3)

@@ -46,7 +46,7 @@ def _append_line(path: Path, line: str) -> int:
 @pytest.mark.parametrize("line, message", [
     ("9 0.1 0.1 0.2 0.1 0.2 0.2", "class id 9 out of range"),
     ("0 0.1 0.1 0.2 0.1 0.2", "odd number of coordinates"),
-    ("0 0.1 0.1 0.2 0.2", "bounding-box label"),
+    ("0 0.1 0.1 0.2 0.2", "segmentation labels needed"),
     ("0 0.1 0.1 0.2 0.1 0.3 0.4 0.5 0.6 0.7 0.8 0.9 0.9 0.1 0.1 0.2 0.2 0.3", "odd number"),
     ("0 0.1 0.1 0.2 0.2 0.1 0.1 0.2 0.2", "zero area"),
     ("0 10 20 30 20 30 40", "outside [0, 1]"),

@@ -220,7 +220,7 @@ def test_utias_loader_parses_the_shared_log():
 
 def test_utias_loader_names_a_bad_line(tmp_path):
     for name in ("Odometry.dat", "Barcodes.dat", "Landmark_Groundtruth.dat"):
-        (tmp_path / name).write_text("# header\n1 2 3\n")
+        (tmp_path / name).write_text("# header\n1 2 3\n2 2 3\n")
     (tmp_path / "Measurement.dat").write_text("# header\n1.0 5 far 0.1\n")
     with pytest.raises(ValueError, match=r"Measurement.dat:2"):
         load_utias(tmp_path)

@@ -62,5 +62,5 @@ def test_a_recording_with_a_bad_odometry_line_is_named(tmp_path):
     frames, odometry = _recording(tmp_path)
     odometry.write_text("t,x,y,theta\n0.0,0,0,0\n0.4,far,0,0\n")
     calibration = RangeCalibration(PowerLaw(50, -1), PowerLaw(220, -1), colour_law=PowerLaw(6.2, -1.0, 0.03))
-    with pytest.raises(ValueError, match=r"odometry.csv:3: not numbers"):
+    with pytest.raises(ValueError, match=r"odometry.csv:3: not finite numbers"):
         recorded_sequence(frames, odometry, FrontEnd("colour-filter", calibration), 0.3)

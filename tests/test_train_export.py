@@ -34,7 +34,7 @@ def test_training_uses_every_core(tiny_run):
 
 def test_training_refuses_an_existing_run_and_a_finished_resume(tiny_run, synth_dataset):
     settings = TrainSettings(model="yolov8n-seg", epochs=1, imgsz=64)
-    with pytest.raises(FileExistsError, match="already holds a run"):
+    with pytest.raises(FileExistsError, match="already holds a finished run"):
         train_model(synth_dataset, tiny_run, settings)
     with pytest.raises(ValueError, match="finished all its epochs"):
         train_model(synth_dataset, tiny_run, settings, resume=True)
@@ -50,7 +50,19 @@ def test_train_settings_refuse_bad_values(kwargs, message):
 
 def test_train_command_names_a_missing_dataset(tmp_path, capsys):
     assert main(["train", "--data", str(tmp_path / "nowhere"), "--out", str(tmp_path / "run")]) == 2
-    assert "no data.yaml" in capsys.readouterr().err
+    error = capsys.readouterr().err
+    assert "nowhere: error: no such file or folder" in error and "Traceback" not in error
+    assert not (tmp_path / "run").exists()
+
+
+def test_training_never_writes_into_the_dataset_and_a_rerun_replaces_a_failed_run(synth_dataset, tmp_path):
+    before = {p: p.stat().st_mtime_ns for p in synth_dataset.rglob("*")}
+    run = tmp_path / "run"
+    (run / "weights").mkdir(parents=True)
+    (run / "args.yaml").write_text("left by a run that crashed\n")
+    train_model(synth_dataset, run, TrainSettings(model="yolov8n-seg", epochs=1, imgsz=64, batch=8))
+    assert (run / "weights" / "best.pt").is_file() and list((run / "dataset").rglob("*.cache"))
+    assert {p: p.stat().st_mtime_ns for p in synth_dataset.rglob("*")} == before
 
 
 def test_export_carries_metadata(tiny_onnx):

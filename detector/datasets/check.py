@@ -1,6 +1,7 @@
 """``poles check``: validate a dataset, summarise it, and write a cleaned copy on request."""
 from __future__ import annotations
 
+import re
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -12,7 +13,9 @@ from rich.table import Table
 from tqdm import tqdm
 
 from detector.datasets.io import DatasetWriter, load_dataset
+from detector.datasets.labels import BOX_ONLY
 from detector.datasets.model import SPLITS, Dataset, DatasetError, Problem, Sample
+from naoslam.atomic import write_text
 from naoslam.landmarks import CLASSES
 
 
@@ -33,10 +36,10 @@ class CheckReport:
         return self.dataset.errors
 
 
-def check_dataset(path: str | Path, progress: bool = True) -> CheckReport:
+def check_dataset(path: str | Path, progress: bool = True, renames: dict[str, str] | None = None) -> CheckReport:
     """Read a dataset and decode every image; problems found are added to ``report.problems``."""
     try:
-        dataset = load_dataset(path)
+        dataset = load_dataset(path, renames)
     except DatasetError as exc:
         return CheckReport(Dataset(Path(path), [], exc.problems))
     report = CheckReport(dataset, sizes={split: Counter() for split in SPLITS})
@@ -51,9 +54,13 @@ def check_dataset(path: str | Path, progress: bool = True) -> CheckReport:
 
 
 def _image_size(sample: Sample, problems: list[Problem]) -> tuple[int, int] | None:
-    data = np.fromfile(sample.image, np.uint8)
+    try:
+        data = np.fromfile(sample.image, np.uint8)
+    except OSError as exc:
+        problems.append(Problem("error", sample.image, None, f"cannot be read ({exc.strerror})", "replace it with an image"))
+        return None
     image = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
-    truncated = sample.image.suffix.lower() in (".jpg", ".jpeg") and data[-2:].tobytes() != b"\xff\xd9"
+    truncated = data[:3].tobytes() == b"\xff\xd8\xff" and data[-2:].tobytes() != b"\xff\xd9"
     if image is None:
         what = "JPEG is truncated (no end marker) and" if truncated else "image"
         problems.append(Problem("error", sample.image, None, f"{what} cannot be decoded (corrupt or not an image)",
@@ -65,39 +72,71 @@ def _image_size(sample: Sample, problems: list[Problem]) -> tuple[int, int] | No
     return image.shape[1], image.shape[0]
 
 
-def print_report(report: CheckReport, console: Console | None = None, show_notes: bool = False) -> None:
-    """Print the per-split table (images, negatives, instances per class, image sizes) and every problem."""
+#: Examples shown per kind of problem; the whole list goes to a file.
+EXAMPLES_PER_KIND = 3
+
+
+def print_report(report: CheckReport, console: Console | None = None, show_notes: bool = False,
+                 full_list: Path | None = None) -> Path | None:
+    """Print the per-split table and a summary per kind of problem (count and first examples); the whole list is
+    written to ``full_list`` (atomically) when the summary leaves some out. Returns that file, if written."""
     console = console or Console()
     table = Table(title=f"dataset {report.dataset.root}")
-    for column in ("split", "images", "empty", *CLASSES, "poles", "image sizes"):
+    for column in ("split", "images", "empty", "box-only", "unreadable", *CLASSES, "poles", "image sizes"):
         table.add_column(column, justify="left" if column in ("split", "image sizes") else "right")
+    box_only = {p.path for p in report.problems if BOX_ONLY in p.message}
     for split in SPLITS:
         samples = report.dataset.split(split)
         if not samples:
             continue
         per_class = Counter(i.cls for s in samples for i in s.instances)
-        negatives = sum(1 for s in samples if not s.instances)
+        negatives = sum(1 for s in samples if not s.instances and s.label not in box_only)
+        boxes = sum(1 for s in samples if s.label in box_only)
+        unreadable = sum(1 for s in samples if s.image in report.unreadable)
         sizes = ", ".join(f"{k} ({v})" for k, v in report.sizes.get(split, Counter()).most_common(3))
-        table.add_row(split, str(len(samples)), str(negatives), *(str(per_class[c]) for c in CLASSES),
-                      str(sum(per_class.values())), sizes)
+        table.add_row(split, str(len(samples)), str(negatives), str(boxes), str(unreadable),
+                      *(str(per_class[c]) for c in CLASSES), str(sum(per_class.values())), sizes)
     console.print(table)
     shown = [p for p in report.problems if show_notes or p.severity != "note"]
-    notes = len(report.problems) - len(shown)
+    kinds: dict[tuple[str, str], list[Problem]] = {}
     for problem in shown:
-        style = "red" if problem.severity == "error" else "yellow"
-        console.print(f"[{style}]{problem}[/{style}]", highlight=False, soft_wrap=True)
+        kinds.setdefault((problem.severity, _kind(problem.message)), []).append(problem)
+    left_out = 0
+    for (severity, _), problems in sorted(kinds.items(), key=lambda kv: (kv[0][0] != "error", -len(kv[1]))):
+        style = "red" if severity == "error" else "yellow"
+        console.print(f"[{style}]{len(problems)} x {severity}: {problems[0].message} - fix: {problems[0].fix}[/{style}]",
+                      highlight=False, soft_wrap=True)
+        for problem in problems[:EXAMPLES_PER_KIND]:
+            console.print(f"    {problem.path}" + (f":{problem.line}" if problem.line else ""), highlight=False)
+        left_out += max(0, len(problems) - EXAMPLES_PER_KIND)
     counts = Counter(p.severity for p in report.problems)
+    notes = len(report.problems) - len(shown)
     console.print(f"{counts['error']} error(s), {counts['warning']} warning(s), {counts['note']} note(s)"
                   + (f" ({notes} notes hidden: --notes shows them)" if notes else ""))
+    if left_out and full_list is not None:
+        write_text(full_list, "".join(f"{p}\n" for p in report.problems))
+        console.print(f"every problem, one per line: {full_list}")
+        return full_list
+    return None
+
+
+def _kind(message: str) -> str:
+    """What a problem is, without its particulars (quoted names, numbers)."""
+    return re.sub(r"'[^']*'|\"[^\"]*\"|-?\d+(\.\d+)?", "#", message)
 
 
 def write_fixed_copy(report: CheckReport, out: str | Path, force: bool = False) -> Path:
     """Write a cleaned copy: bad label lines dropped, coordinates clipped, unreadable images and orphan labels left out.
 
-    Stems that collide across splits keep their first split only. The input is never written.
+    Stems that collide across splits keep their first split only. The input is never written. A dataset that could
+    not be read at all, or whose labels are boxes, is refused: a "cleaned" copy would hold images without poles.
     """
+    blocking = [p for p in report.errors if BOX_ONLY in p.message or not report.dataset.samples]
+    if blocking:
+        raise DatasetError(blocking[:1] + ([Problem("error", report.dataset.root, None, "--fix cannot repair this: "
+                                                    f"{len(blocking)} such problem(s)", "re-export the dataset")]))
     seen: set[str] = set()
-    with DatasetWriter(out, force=force, protect=(report.dataset.root,)) as writer:
+    with DatasetWriter(out, force=force, protect=report.dataset.input_folders()) as writer:
         for sample in report.dataset.samples:
             if sample.image is None or sample.image in report.unreadable or sample.stem in seen:
                 continue

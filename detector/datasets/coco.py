@@ -4,13 +4,14 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from detector.datasets.io import IMAGE_SUFFIXES
 from detector.datasets.model import SPLITS, Dataset, Instance, Problem, Sample
-from detector.datasets.names import canonical_class
+from detector.datasets.names import class_codes
 from detector.datasets.polygons import merge_polygons, polygon_area
-from detector.datasets.labels import MIN_NORMALISED_AREA
+from detector.datasets.labels import BOX_ONLY, MIN_NORMALISED_AREA
 
 COCO_FILENAME = "_annotations.coco.json"
 
@@ -28,57 +29,121 @@ def find_coco_files(path: Path) -> dict[str, Path]:
     return found
 
 
-def load_coco(path: Path) -> Dataset:
+def load_coco(path: Path, renames: dict[str, str] | None = None) -> Dataset:
     """Read every split's COCO file; polygons in pixels become normalised, multi-part masks are joined."""
     samples: list[Sample] = []
     problems: list[Problem] = []
     for split, json_path in sorted(find_coco_files(path).items(), key=lambda kv: SPLITS.index(kv[0])):
-        samples += _read_coco_split(split, json_path, problems)
+        samples += _read_coco_split(split, json_path, problems, renames)
     return Dataset(path, samples, problems)
 
 
-def _read_coco_split(split: str, json_path: Path, problems: list[Problem]) -> list[Sample]:
+def _read_coco_split(split: str, json_path: Path, problems: list[Problem], renames: dict[str, str] | None) -> list[Sample]:
+    def error(message: str, fix: str) -> None:
+        problems.append(Problem("error", json_path, None, message, fix))
+
     try:
-        coco = json.loads(json_path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as exc:
+        coco = json.loads(json_path.read_text(encoding="utf-8-sig"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         problems.append(Problem("error", json_path, getattr(exc, "lineno", None), f"cannot read COCO JSON ({exc})",
                                 "re-export the dataset"))
         return []
-    categories = {c["id"]: (c["name"], canonical_class(c["name"])) for c in coco.get("categories", [])}
-    by_image: dict[int, list[dict]] = {}
-    for annotation in coco.get("annotations", []):
-        by_image.setdefault(annotation["image_id"], []).append(annotation)
-    samples = []
+    if not isinstance(coco, dict) or not all(isinstance(coco.get(k, []), list) for k in ("images", "annotations", "categories")):
+        error("not a COCO file (no `images`, `annotations` and `categories` lists)", "re-export as COCO segmentation")
+        return []
+    categories = _categories(coco["categories"] if "categories" in coco else [], json_path, problems, renames)
+    images: dict = {}
     for image in coco.get("images", []):
+        if not isinstance(image, dict) or not isinstance(image.get("file_name"), str) or "id" not in image:
+            error(f"image entry {str(image)[:60]} has no `id` and `file_name`", "re-export the dataset")
+        elif image["id"] in images:
+            error(f"image id {image['id']!r} is used by {images[image['id']]['file_name']!r} and {image['file_name']!r}",
+                  "give every image its own id (re-export)")
+        else:
+            images[image["id"]] = image
+    by_image: dict = {}
+    for annotation in coco.get("annotations", []):
+        image_id = annotation.get("image_id") if isinstance(annotation, dict) else None
+        if image_id not in images:
+            error(f"annotation {annotation.get('id') if isinstance(annotation, dict) else annotation!r}: "
+                  f"image_id {image_id!r} is not an image of this file", "re-export, or delete the annotation")
+            continue
+        by_image.setdefault(image_id, []).append(annotation)
+    samples = []
+    for image_id, image in images.items():
         image_path = json_path.parent / image["file_name"]
         if image_path.suffix.lower() not in IMAGE_SUFFIXES or not image_path.is_file():
-            problems.append(Problem("error", json_path, None, f"image {image['file_name']!r} is listed but missing",
-                                    f"put it beside {json_path.name}"))
+            error(f"image {image['file_name']!r} is listed but missing", f"put it beside {json_path.name}")
             continue
-        size = np.array([image["width"], image["height"]], np.float64)
-        instances = []
-        for annotation in by_image.get(image["id"], []):
-            instance = _instance(annotation, categories, size, json_path, problems)
-            if instance is not None:
-                instances.append(instance)
+        size = _image_size(image, image_path, json_path, problems)
+        if size is None:
+            continue
+        instances = [inst for a in by_image.get(image_id, []) if (inst := _instance(a, categories, size, json_path, problems))]
         samples.append(Sample(split, image_path, None, instances))
     return samples
+
+
+def _categories(raw: list, json_path: Path, problems: list[Problem], renames: dict[str, str] | None) -> dict:
+    """Category id -> landmark code (None: names no landmark). Roboflow's placeholder supercategory (id 0,
+    the project's name, which no annotation uses) is skipped; the rest go through ``class_codes``."""
+    used = [c for c in raw if isinstance(c, dict) and "id" in c and "name" in c]
+    if len(used) != len(raw):
+        problems.append(Problem("error", json_path, None, "a category has no `id` or `name`", "re-export the dataset"))
+    placeholder = [c for c in used if c.get("supercategory") == "none" and c["id"] == 0 and len(used) > 1]
+    named = [c for c in used if c not in placeholder]
+    codes, found = class_codes([c["name"] for c in named], json_path, renames)
+    problems += found
+    return {c["id"]: code for c, code in zip(named, codes)}
+
+
+def _image_size(image: dict, image_path: Path, json_path: Path, problems: list[Problem]) -> np.ndarray | None:
+    """The image's real size; an error when COCO declares another (polygons would be scaled wrongly)."""
+    real = cv2.imread(str(image_path), cv2.IMREAD_UNCHANGED)
+    if real is None:
+        problems.append(Problem("error", image_path, None, "image cannot be decoded (corrupt or not an image)",
+                                "re-export or delete the image"))
+        return None
+    height, width = real.shape[:2]
+    declared = (image.get("width"), image.get("height"))
+    if declared != (None, None) and declared != (width, height):
+        problems.append(Problem("error", json_path, None, f"image {image['file_name']!r} is declared {declared[0]}x"
+                                f"{declared[1]} but is {width}x{height}", "re-export the dataset (polygons are in the "
+                                "declared size's pixels)"))
+        return None
+    return np.array([width, height], np.float64)
 
 
 def _instance(annotation: dict, categories: dict, size: np.ndarray, json_path: Path, problems: list[Problem]):
     def error(message: str, fix: str) -> None:
         problems.append(Problem("error", json_path, None, f"annotation {annotation.get('id')}: {message}", fix))
 
-    name, code = categories.get(annotation.get("category_id"), (None, None))
+    if annotation.get("category_id") not in categories:
+        return error(f"category_id {annotation.get('category_id')!r} is not a category of this file", "re-export")
+    code = categories[annotation["category_id"]]
     if code is None:
-        return error(f"category {name!r} names no landmark", "rename the category to one of bp gp yp pb pg py")
+        return None  # the category itself is reported once
     segmentation = annotation.get("segmentation")
     if isinstance(segmentation, dict):
         return error("RLE mask, not polygons", "export with polygon segmentation (Roboflow's COCO export does)")
-    parts = [np.asarray(s, np.float64).reshape(-1, 2) / size for s in segmentation or [] if len(s) >= 6 and len(s) % 2 == 0]
+    if isinstance(segmentation, list) and segmentation and all(isinstance(v, (int, float)) for v in segmentation):
+        segmentation = [segmentation]  # a flat list is one polygon
+    if not isinstance(segmentation, list) or not all(isinstance(part, list) for part in segmentation):
+        return error(f"segmentation {str(segmentation)[:40]} is not a list of polygons", "re-export the dataset")
+    if not segmentation:
+        return error(f"a box without a polygon - {BOX_ONLY}", "export from Roboflow as COCO *instance segmentation*")
+    try:
+        arrays = [np.asarray(part, np.float64) for part in segmentation]
+    except (TypeError, ValueError):
+        return error("segmentation holds something other than numbers", "re-export the dataset")
+    if not all(np.isfinite(a).all() for a in arrays):
+        return error("a coordinate is not finite (nan/inf)", "redraw the outline")
+    parts = [a.reshape(-1, 2) for a in arrays if a.size >= 6 and a.size % 2 == 0]
     if not parts:
         return error("no polygon with at least 3 points", "draw a polygon, not only a box")
-    polygon = np.clip(merge_polygons(parts), 0.0, 1.0)
+    pixels = np.concatenate(parts)
+    if pixels.min() < -1 or (pixels > size + 1).any():
+        return error(f"coordinates outside the {int(size[0])}x{int(size[1])} image", "redraw the outline inside the image")
+    polygon = np.clip(merge_polygons([p / size for p in parts]), 0.0, 1.0)
     if polygon_area(polygon) < MIN_NORMALISED_AREA:
         return error("polygon has zero area", "redraw the outline")
     return Instance(code, polygon)

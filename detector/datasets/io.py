@@ -12,7 +12,7 @@ import yaml
 
 from detector.datasets.labels import format_label_line, parse_label_file
 from detector.datasets.model import SPLITS, Dataset, DatasetError, Instance, Problem, Sample
-from detector.datasets.names import canonical_class
+from detector.datasets.names import class_codes
 from naoslam.landmarks import CLASSES
 
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".webp", ".tif", ".tiff"}
@@ -20,39 +20,50 @@ IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".webp", ".tif", ".tiff"}
 YAML_SPLIT_KEYS = {"train": "train", "val": "valid", "test": "test"}
 
 
-def load_dataset(path: str | Path) -> Dataset:
+def load_dataset(path: str | Path, renames: dict[str, str] | None = None) -> Dataset:
     """Read a dataset: a folder with ``data.yaml`` (or the yaml itself), or a Roboflow COCO export folder.
 
-    Problems are collected in ``Dataset.problems``; call ``require_clean()`` to refuse a dataset with errors.
+    ``renames`` maps a class name of the export to a landmark code before it is read (``--rename``). Problems are
+    collected in ``Dataset.problems``; commands read datasets through ``intake.open_dataset``, which refuses errors.
     """
     path = Path(path)
     if not path.exists():
         raise DatasetError([Problem("error", path, None, "no such file or folder", "give the dataset folder (with data.yaml)")])
     yaml_path = path if path.is_file() and path.suffix in (".yaml", ".yml") else path / "data.yaml"
     if yaml_path.is_file():
-        return _load_yolo(yaml_path)
+        return _load_yolo(yaml_path, renames)
     from detector.datasets.coco import find_coco_files, load_coco
 
-    if find_coco_files(path):
-        return load_coco(path)
+    if path.is_dir() and find_coco_files(path):
+        return load_coco(path, renames)
     raise DatasetError([Problem("error", path, None, "neither data.yaml nor a COCO _annotations.coco.json found",
                                 "point to a Roboflow 'YOLOv8' or 'COCO' segmentation export folder")])
 
 
-def _load_yolo(yaml_path: Path) -> Dataset:
+def _load_yolo(yaml_path: Path, renames: dict[str, str] | None) -> Dataset:
     root = yaml_path.parent
     problems: list[Problem] = []
     try:
-        config = yaml.safe_load(yaml_path.read_text(encoding="utf-8")) or {}
+        config = yaml.safe_load(yaml_path.read_text(encoding="utf-8-sig"))
+    except UnicodeDecodeError as exc:
+        raise DatasetError([Problem("error", yaml_path, None, f"not UTF-8 text ({exc.reason} at byte {exc.start})",
+                                    "save data.yaml as UTF-8")]) from None
     except (OSError, yaml.YAMLError) as exc:
-        raise DatasetError([Problem("error", yaml_path, getattr(getattr(exc, "problem_mark", None), "line", None),
-                                    f"cannot read YAML ({exc})", "fix the YAML syntax")]) from exc
-    names = _class_names(yaml_path, config, problems)
+        line = getattr(getattr(exc, "problem_mark", None), "line", None)
+        raise DatasetError([Problem("error", yaml_path, line + 1 if line is not None else None,
+                                    f"cannot read YAML ({str(exc).splitlines()[0]})", "fix the YAML syntax")]) from None
+    if not isinstance(config, dict):
+        raise DatasetError([Problem("error", yaml_path, None, f"holds a {type(config).__name__}, not a mapping",
+                                    "write `train:`, `val:`, `test:` and `names:` keys as Roboflow does")])
+    names = _class_names(yaml_path, config, problems, renames)
     samples: list[Sample] = []
     base = root / str(config.get("path", "")) if config.get("path") else root
     for key, split in YAML_SPLIT_KEYS.items():
         images_dir = _split_folder(base, config.get(key), split)
         if images_dir is None:
+            if isinstance(config.get(key), str):
+                problems.append(Problem("warning", yaml_path, None, f"{key}: {config[key]!r} names no folder: "
+                                        f"the {split} split is empty", f"create {split}/images or fix the path"))
             continue
         samples += _read_split(split, images_dir, names, problems)
     if not any(s.image for s in samples):
@@ -62,18 +73,16 @@ def _load_yolo(yaml_path: Path) -> Dataset:
     return Dataset(root, samples, problems)
 
 
-def _class_names(yaml_path: Path, config: dict, problems: list[Problem]) -> tuple[str | None, ...]:
+def _class_names(yaml_path: Path, config: dict, problems: list[Problem],
+                 renames: dict[str, str] | None) -> tuple[str | None, ...]:
     raw = config.get("names")
     if isinstance(raw, dict):
-        raw = [raw[k] for k in sorted(raw)]
+        raw = [raw[k] for k in sorted(raw, key=str)]
     if not isinstance(raw, list) or not raw:
         raise DatasetError([Problem("error", yaml_path, None, "no `names` list",
                                     "add `names: ['bp', 'gp', 'yp', 'pb', 'pg', 'py']` (in your class order)")])
-    names = tuple(canonical_class(n) for n in raw)
-    for index, (given, code) in enumerate(zip(raw, names)):
-        if code is None:
-            problems.append(Problem("error", yaml_path, None, f"class {index} {given!r} names no landmark",
-                                    f"rename it to one of {' '.join(CLASSES)} (top band first)"))
+    names, found = class_codes(raw, yaml_path, renames)
+    problems += found
     if "nc" in config and config["nc"] != len(raw):
         problems.append(Problem("warning", yaml_path, None, f"nc is {config['nc']} but names has {len(raw)} entries",
                                 "set nc to the length of names"))
@@ -139,6 +148,8 @@ class DatasetWriter:
 
     def __init__(self, out: str | Path, *, force: bool = False, protect: tuple[Path, ...] = ()):
         self.out = Path(out).resolve()
+        if self.out.exists() and not self.out.is_dir():
+            raise FileExistsError(f"--out {self.out} is a file: give a folder for the dataset")
         for guarded in protect:
             guarded = Path(guarded).resolve()
             if self.out == guarded or guarded in self.out.parents or self.out in guarded.parents:
@@ -156,12 +167,15 @@ class DatasetWriter:
             (self.tmp / split / "labels").mkdir(parents=True)
         return self
 
-    def add(self, split: str, filename: str, image: bytes | Path, instances: list[Instance]) -> Path:
-        """Add one image (encoded bytes, or a file to copy unchanged) and its instances; returns the image's final path."""
+    def add(self, split: str, filename: str, image: bytes | Path, instances: list[Instance], link: bool = False) -> Path:
+        """Add one image (encoded bytes, or a file to copy unchanged, or to link to with ``link``) and its instances,
+        written by class name in the canonical class order; returns the image's final path."""
         if split not in SPLITS:
             raise ValueError(f"unknown split {split!r}; expected one of {SPLITS}")
         target = self.tmp / split / "images" / filename
-        if isinstance(image, Path):
+        if isinstance(image, Path) and link:
+            _link_or_copy(image, target)
+        elif isinstance(image, Path):
             shutil.copyfile(image, target)
         else:
             target.write_bytes(image)
@@ -171,10 +185,9 @@ class DatasetWriter:
         return self.out / split / "images" / filename
 
     def copy_sample(self, sample: Sample) -> None:
-        """Copy an image and its label file byte for byte (an unlabelled image gets an empty label file)."""
-        self.add(sample.split, sample.image.name, sample.image, [])
-        if sample.label is not None:
-            shutil.copyfile(sample.label, self.tmp / sample.split / "labels" / f"{sample.image.stem}.txt")
+        """Copy an image byte for byte with its instances, written by class name in this dataset's class order
+        (the input may order its classes differently, or be a COCO export without label files)."""
+        self.add(sample.split, sample.image.name, sample.image, sample.instances)
 
     def write_text(self, relative: str, text: str) -> None:
         """Add any other file (a report, annotations.json) at a path relative to the dataset root."""
@@ -199,6 +212,13 @@ class DatasetWriter:
             os.replace(self.tmp, self.out)
 
 
+def _link_or_copy(source: Path, target: Path) -> None:
+    try:
+        os.symlink(source.resolve(), target)
+    except OSError:  # a file system without links
+        shutil.copyfile(source, target)
+
+
 def data_yaml_text() -> str:
     """data.yaml as Roboflow writes it (paths relative to the yaml, canonical class order)."""
     return ("train: ../train/images\nval: ../valid/images\ntest: ../test/images\n\n"
@@ -207,7 +227,7 @@ def data_yaml_text() -> str:
 
 def write_dataset(out: str | Path, dataset: Dataset, *, force: bool = False) -> Path:
     """Copy a dataset's images and instances into a new Roboflow-layout folder; returns its path."""
-    with DatasetWriter(out, force=force, protect=(dataset.root,)) as writer:
+    with DatasetWriter(out, force=force, protect=dataset.input_folders()) as writer:
         for sample in dataset.samples:
             if sample.image is not None:
                 writer.add(sample.split, sample.image.name, sample.image, sample.instances)

@@ -1,6 +1,7 @@
 """Parse YOLO segmentation label files line by line, reporting every problem with its line number."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +11,8 @@ from detector.datasets.polygons import polygon_area
 
 #: Coordinates may stray this far outside [0, 1] (annotation tools round); they are clipped when read.
 COORD_TOLERANCE = 0.01
+#: The words every command uses for detection (box-only) labels, which segmentation training cannot use.
+BOX_ONLY = "segmentation labels needed: export as instance segmentation"
 #: A polygon smaller than this (in normalised units, about 0.03 px^2 at 640x480) has no area.
 MIN_NORMALISED_AREA = 1e-7
 
@@ -22,7 +25,7 @@ def parse_label_file(path: Path, names: tuple[str | None, ...]) -> tuple[list[In
     instances: list[Instance] = []
     problems: list[Problem] = []
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
         return [], [Problem("error", path, None, f"cannot read label file ({exc})", "replace it with a text file")]
     for number, raw in enumerate(text.splitlines(), start=1):
@@ -44,15 +47,15 @@ def _parse_line(path: Path, number: int, tokens: list[str], names: tuple[str | N
     except ValueError:
         return error(f"not a number in {' '.join(tokens)[:60]!r}", "each line is `class x1 y1 x2 y2 ...` in numbers")
     class_value, coords = values[0], np.array(values[1:], np.float64)
-    if class_value != int(class_value) or not 0 <= class_value < len(names):
+    if len(coords) == 4:
+        return error(f"4 numbers after the class: a bounding box (or a 2-point outline), not a polygon - {BOX_ONLY}",
+                     "export the dataset from Roboflow as YOLOv8 *instance segmentation* (polygons)")
+    if not math.isfinite(class_value) or class_value != int(class_value) or not 0 <= class_value < len(names):
         return error(f"class id {tokens[0]} out of range 0..{len(names) - 1}",
                      "use an index into `names` in data.yaml, or add the class there")
     cls = names[int(class_value)]
     if cls is None:
         return error(f"class id {int(class_value)} names no landmark", "rename the class in data.yaml to one of bp gp yp pb pg py")
-    if len(coords) == 4:
-        return error("4 numbers after the class: a bounding-box label, not a polygon",
-                     "export the dataset as YOLOv8 *instance segmentation* (polygons)")
     if len(coords) % 2:
         return error(f"odd number of coordinates ({len(coords)})", "each vertex needs an x and a y")
     if len(coords) < 6:

@@ -81,6 +81,18 @@ class Dataset:
     def errors(self) -> list[Problem]:
         return [p for p in self.problems if p.severity == "error"]
 
+    def input_folders(self) -> tuple[Path, ...]:
+        """Every folder this dataset is read from (its root, each split's image and label folders, wherever data.yaml's
+        ``path:`` puts them): outputs may neither be nor hold nor lie inside any of them."""
+        folders = {Path(self.root).resolve()}
+        for sample in self.samples:
+            for file in (sample.image, sample.label):
+                if file is not None:
+                    folders.add(file.parent.resolve())
+                    if file.parent.name in ("images", "labels"):
+                        folders.add(file.parent.parent.resolve())
+        return tuple(sorted(folders))
+
     def require_clean(self) -> "Dataset":
         """Return self, or raise DatasetError when reading found errors."""
         if self.errors:

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from detector.datasets.io import DatasetWriter, load_dataset
+from detector.datasets.intake import open_dataset
+from detector.datasets.io import DatasetWriter
 from detector.datasets.model import Sample
 
 #: The order of ``--ratios``: train, test, valid (as the thesis lists them).
@@ -47,10 +48,10 @@ def split_dataset(data: str | Path, out: str | Path, ratios: tuple[float, float,
     """Write a copy of every image of ``data`` into new splits; returns images per split."""
     if len(ratios) != 3 or min(ratios) < 0 or sum(ratios) <= 0:
         raise ValueError(f"--ratios needs three non-negative numbers (train test valid), got {list(ratios)}")
-    dataset = load_dataset(data).require_clean()
+    dataset = open_dataset(data)
     samples = [s for s in dataset.samples if s.image is not None]
     assignment = stratified_assignment(samples, dict(zip(RATIO_ORDER, ratios)), seed)
-    with DatasetWriter(out, force=force, protect=(dataset.root,)) as writer:
+    with DatasetWriter(out, force=force, protect=dataset.input_folders()) as writer:
         for sample, split in zip(samples, assignment):
             writer.copy_sample(Sample(split, sample.image, sample.label, sample.instances))
     return dict(writer.counts)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 from pathlib import Path
 
 from detector.datasets.model import Dataset, DatasetError, Problem
@@ -24,19 +25,32 @@ def load_truth(dataset: Dataset, csv_path: Path | None = None) -> dict[str, Imag
     path = dataset.root / "annotations.json"
     if not path.is_file():
         return {}
-    images = json.loads(path.read_text()).get("images", {})
+    images = _our_annotations(path)
+    if images is None:
+        print(f"note: {path} is not an annotations.json of `poles synth` (no images -> landmarks mapping); ignored")
+        return {}
     truth = {}
     for sample in dataset.samples:
         entry = images.get(sample.image.name)
-        if entry is None:
+        if not isinstance(entry, dict):
             continue
-        landmarks = entry.get("landmarks", [])
-        if [lm["cls"] for lm in landmarks] != [inst.cls for inst in sample.instances]:
+        landmarks = [lm for lm in entry.get("landmarks", []) if isinstance(lm, dict)]
+        if [lm.get("cls") for lm in landmarks] != [inst.cls for inst in sample.instances]:
             raise DatasetError([Problem("error", path, None,
                                         f"landmarks of {sample.image.name} do not follow its label file's classes",
                                         "regenerate annotations.json with the labels, or pass a CSV with --truth")])
         truth[sample.image.name] = [dict(lm, image_width=entry.get("width")) for lm in landmarks]
     return truth
+
+
+def _our_annotations(path: Path) -> dict | None:
+    """The ``images`` mapping of an annotations.json in this project's schema, or None for any other file."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return None
+    images = data.get("images") if isinstance(data, dict) else None
+    return images if isinstance(images, dict) else None
 
 
 def _from_csv(dataset: Dataset, path: Path) -> dict[str, ImageTruth]:
@@ -45,7 +59,7 @@ def _from_csv(dataset: Dataset, path: Path) -> dict[str, ImageTruth]:
         raise FileNotFoundError(f"{path}: no such truth CSV (columns image,class,range_m)")
     by_image = {s.image.name: s for s in dataset.samples}
     truth: dict[str, ImageTruth] = {}
-    with path.open(newline="") as handle:
+    with path.open(newline="", encoding="utf-8-sig", errors="replace") as handle:
         reader = csv.DictReader(handle)
         if not reader.fieldnames or not {"image", "class", "range_m"} <= set(reader.fieldnames):
             raise ValueError(f"{path}:1: header must be image,class,range_m (got {reader.fieldnames})")
@@ -54,8 +68,10 @@ def _from_csv(dataset: Dataset, path: Path) -> dict[str, ImageTruth]:
             cls = canonical_class(row["class"])
             try:
                 range_m = float(row["range_m"])
-            except ValueError:
+            except (TypeError, ValueError):
                 raise ValueError(f"{path}:{line}: range_m {row['range_m']!r} is not a number") from None
+            if not math.isfinite(range_m) or range_m <= 0:
+                raise ValueError(f"{path}:{line}: range_m {row['range_m']!r} must be a positive distance in metres")
             if cls is None:
                 raise ValueError(f"{path}:{line}: class {row['class']!r} names no landmark - use one of bp gp yp pb pg py")
             if sample is None:

@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from detector.datasets import load_dataset
+from detector.datasets.intake import open_dataset
 from detector.datasets.polygons import polygon_to_mask
 from detector.datasets.truth import load_truth
 from detector.evaluation.counting import (ImageEvaluation, confidence_sweep, evaluate_image, map_scores,
@@ -24,7 +24,7 @@ from naoslam.measurement import bearing_of_column
 def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", conf: float = 0.5,
              progress: bool = True) -> dict:
     """Evaluate ``predictor`` on ``split`` of ``data``; writes ``out``/metrics.json, plots and overlays."""
-    dataset = load_dataset(data).require_clean()
+    dataset = open_dataset(data, progress=progress)
     samples = dataset.split(split)
     if not samples:
         raise ValueError(f"{data}: the {split!r} split has no images - pick another with --split")

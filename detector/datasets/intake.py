@@ -1,0 +1,40 @@
+"""How every command takes a dataset in: read it (YOLO layout or COCO), run ``poles check``'s rules on it, image
+decoding included, and refuse it with every blocking problem when they find errors. Nothing downstream meets data
+that ``poles check`` would reject.
+
+``training_view`` gives Ultralytics a dataset it can read without touching the input: a folder inside the run with
+links to the images and label files written by class name in the canonical order (copies where links are not
+allowed).
+Ultralytics' ``labels.cache`` files land there, never in the user's dataset.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from detector.datasets.check import check_dataset
+from detector.datasets.io import DatasetWriter
+from detector.datasets.model import Dataset, DatasetError, Problem
+
+#: Splits Ultralytics needs to train (it validates every epoch).
+TRAINING_SPLITS = ("train", "valid")
+
+
+def open_dataset(path: str | Path, renames: dict[str, str] | None = None, progress: bool = True) -> Dataset:
+    """The dataset at ``path`` after every check (images decoded); ``DatasetError`` listing what blocks it."""
+    report = check_dataset(path, progress=progress, renames=renames)
+    if report.errors:
+        raise DatasetError(report.errors)
+    return report.dataset
+
+
+def training_view(dataset: Dataset, folder: Path) -> Path:
+    """Write the view of ``dataset`` that Ultralytics trains on into ``folder``; returns its data.yaml."""
+    for split in TRAINING_SPLITS:
+        if not dataset.split(split):
+            raise DatasetError([Problem("error", dataset.root, None, f"the {split} split has no images: training needs "
+                                        "train and valid", "run `poles split --data DATA --out NEW` to make them")])
+    with DatasetWriter(folder, force=True, protect=dataset.input_folders()) as writer:
+        for sample in dataset.samples:
+            if sample.image is not None:
+                writer.add(sample.split, sample.image.name, sample.image, sample.instances, link=True)
+    return folder / "data.yaml"

@@ -1,0 +1,70 @@
+"""How a ``poles`` command ends: one line on standard error for anything that goes wrong, never a raw traceback.
+
+Bad input (a dataset problem, a file that is missing, exists or cannot be written, a bad value) exits 2 with the
+message, which names the file and the fix. Ctrl-C and SIGTERM exit 130 / 143 after the atomic writers have removed
+their partial output. Anything unexpected exits 1 with a one-line summary and the traceback saved to a log file;
+``--debug`` shows the traceback instead.
+"""
+from __future__ import annotations
+
+import signal
+import sys
+import tempfile
+import time
+import traceback
+from collections.abc import Callable
+from contextlib import contextmanager
+from pathlib import Path
+
+from detector.datasets.model import DatasetError
+
+#: Exit statuses.
+BAD_INPUT, UNEXPECTED, INTERRUPTED, TERMINATED = 2, 1, 130, 143
+
+
+class Terminated(BaseException):
+    """SIGTERM, raised like Ctrl-C so that every ``with`` block cleans up on the way out."""
+
+
+@contextmanager
+def _sigterm_raises():
+    def raise_terminated(signum, frame):
+        raise Terminated
+
+    try:
+        previous = signal.signal(signal.SIGTERM, raise_terminated)
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def run_command(name: str, command: Callable[[], int], debug: bool = False) -> int:
+    """Run ``command`` and turn whatever it raises into a message and an exit status."""
+    prefix = f"poles {name}:"
+    try:
+        with _sigterm_raises():
+            return command()
+    except KeyboardInterrupt:
+        print(f"{prefix} interrupted; unfinished output was removed", file=sys.stderr)
+        return INTERRUPTED
+    except Terminated:
+        print(f"{prefix} terminated; unfinished output was removed", file=sys.stderr)
+        return TERMINATED
+    except (DatasetError, ValueError, OSError) as exc:
+        if debug:
+            raise
+        print(f"{prefix} {exc}", file=sys.stderr)
+        return BAD_INPUT
+    except Exception as exc:
+        if debug:
+            raise
+        log = Path(tempfile.gettempdir()) / f"poles-{name}-{time.strftime('%Y%m%d-%H%M%S')}.log"
+        log.write_text(traceback.format_exc(), encoding="utf-8")
+        summary = str(exc).splitlines()[0][:200] if str(exc) else ""
+        print(f"{prefix} unexpected error: {type(exc).__name__}: {summary}\n  details: {log} "
+              f"(rerun with --debug to see the traceback)", file=sys.stderr)
+        return UNEXPECTED

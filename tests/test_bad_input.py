@@ -1,0 +1,360 @@
+"""A corpus of bad input, built by code at test time, against every ``poles`` command.
+
+Each case asserts: exit status 2, one message naming the file at fault, no traceback, the input unchanged (hashed)
+and no output written. Valid oddities (BOM, CRLF, a PNG named .jpg, grey and 16-bit images, spelt-out and reordered
+class names, COCO without sizes or with flat polygons, a foreign annotations.json) are accepted end to end.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import yaml
+
+from detector.cli import main
+from detector.datasets import load_dataset
+
+
+def tree_hash(root: Path) -> str:
+    """Hash of every file's path and bytes under ``root``: equal before and after means nothing was touched."""
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*")):
+        digest.update(str(path.relative_to(root)).encode())
+        if path.is_file():
+            digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def first_label(data: Path) -> Path:
+    return next(p for p in sorted((data / "train" / "labels").glob("*.txt")) if p.read_text().strip())
+
+
+def first_image(data: Path) -> Path:
+    return sorted((data / "train" / "images").glob("*.jpg"))[0]
+
+
+def set_yaml(data: Path, **changes) -> None:
+    config = yaml.safe_load((data / "data.yaml").read_text())
+    config.update(changes)
+    (data / "data.yaml").write_text(yaml.safe_dump(config))
+
+
+def append_line(data: Path, line: str) -> Path:
+    label = first_label(data)
+    label.write_text(label.read_text() + line + "\n")
+    return label
+
+
+def to_coco(data: Path, coco: Path) -> Path:
+    """Write ``data`` as a Roboflow COCO export (pixel polygons, a placeholder category 0)."""
+    dataset = load_dataset(data)
+    categories = [{"id": 0, "name": "poles", "supercategory": "none"}] + \
+        [{"id": i + 1, "name": c, "supercategory": "poles"} for i, c in enumerate(("bp", "gp", "yp", "pb", "pg", "py"))]
+    ids = {c["name"]: c["id"] for c in categories}
+    for split in ("train", "valid", "test"):
+        folder = coco / split
+        folder.mkdir(parents=True)
+        images, annotations = [], []
+        for index, sample in enumerate(dataset.split(split)):
+            shutil.copyfile(sample.image, folder / sample.image.name)
+            h, w = cv2.imread(str(sample.image)).shape[:2]
+            images.append({"id": index, "file_name": sample.image.name, "width": w, "height": h})
+            for inst in sample.instances:
+                annotations.append({"id": len(annotations), "image_id": index, "category_id": ids[inst.cls],
+                                    "segmentation": [inst.pixels(w, h).reshape(-1).round(2).tolist()]})
+        (folder / "_annotations.coco.json").write_text(json.dumps(
+            {"images": images, "annotations": annotations, "categories": categories}))
+    return coco
+
+
+def coco_edit(coco: Path, change: Callable[[dict], None]) -> Path:
+    path = coco / "train" / "_annotations.coco.json"
+    data = json.loads(path.read_text())
+    change(data)
+    path.write_text(json.dumps(data))
+    return path
+
+
+@dataclass
+class Case:
+    """A bad input: ``make(tmp, data)`` damages a copy of the dataset (or builds other input) and returns
+    (argv, the folder that must stay unchanged, the text the message must hold)."""
+
+    name: str
+    make: Callable[[Path, Path], tuple[list[str], Path, str]]
+
+
+def dataset_case(name: str, damage: Callable[[Path], object], command: str, named: str | None = None) -> Case:
+    """A dataset damaged by ``damage`` run through ``command``; the message must name ``named`` (default: the file
+    ``damage`` returned)."""
+
+    def make(tmp: Path, data: Path):
+        culprit = damage(data)
+        return COMMAND_ARGV[command](tmp, data), data, named or Path(culprit).name
+
+    return Case(f"{command}: {name}", make)
+
+
+COMMAND_ARGV: dict[str, Callable[[Path, Path], list[str]]] = {
+    "convert": lambda tmp, data: ["convert", str(data), "--out", str(tmp / "out")],
+    "split": lambda tmp, data: ["split", "--data", str(data), "--out", str(tmp / "out")],
+    "augment": lambda tmp, data: ["augment", "--data", str(data), "--out", str(tmp / "out"), "--copies", "1"],
+    "train": lambda tmp, data: ["train", "--data", str(data), "--out", str(tmp / "out"), "--epochs", "1", "--imgsz", "64"],
+    "evaluate": lambda tmp, data: ["evaluate", "--data", str(data), "--out", str(tmp / "out")],
+    "calibrate": lambda tmp, data: ["calibrate", "--data", str(data), "--out", str(tmp / "out")],
+    "export": lambda tmp, data: ["export", "--weights", str(tmp / "none.pt"), "--data", str(data),
+                                 "--out", str(tmp / "out")],
+}
+
+DAMAGES: dict[str, Callable[[Path], object]] = {
+    "class id inf": lambda d: append_line(d, "inf 0.1 0.1 0.2 0.1 0.2 0.2"),
+    "class id nan": lambda d: append_line(d, "nan 0.1 0.1 0.2 0.1 0.2 0.2"),
+    "class id out of range": lambda d: append_line(d, "9 0.1 0.1 0.2 0.1 0.2 0.2"),
+    "odd coordinate count": lambda d: append_line(d, "0 0.1 0.1 0.2 0.1 0.2"),
+    "bounding-box line": lambda d: append_line(d, "0 0.5 0.5 0.2 0.3"),
+    "nan coordinate": lambda d: append_line(d, "0 0.1 nan 0.2 0.1 0.2 0.2"),
+    "pixel coordinates": lambda d: append_line(d, "0 10 20 30 20 30 40"),
+    "zero-byte image": lambda d: (first_image(d).write_bytes(b""), first_image(d))[1],
+    "text named .jpg": lambda d: (first_image(d).write_text("not an image"), first_image(d))[1],
+    "data.yaml is a list": lambda d: ((d / "data.yaml").write_text("- a\n- b\n"), d / "data.yaml")[1],
+    "data.yaml is a scalar": lambda d: ((d / "data.yaml").write_text("42\n"), d / "data.yaml")[1],
+    "data.yaml in latin-1": lambda d: ((d / "data.yaml").write_bytes("names: ['caf\xe9']\n".encode("latin-1")),
+                                       d / "data.yaml")[1],
+    "broken YAML": lambda d: ((d / "data.yaml").write_text("names: [bp, gp\ntrain: :\n"), d / "data.yaml")[1],
+    "duplicate class names": lambda d: (set_yaml(d, names=["bp", "bp", "yp", "pb", "pg", "py"]), d / "data.yaml")[1],
+    "unknown class name": lambda d: (set_yaml(d, names=["bp", "gp", "yp", "pb", "pg", "ball"]), d / "data.yaml")[1],
+    "no names": lambda d: (set_yaml(d, names=None), d / "data.yaml")[1],
+    "label without image": lambda d: ((d / "train" / "labels" / "orphan.txt").write_text(""),
+                                      d / "train" / "labels" / "orphan.txt")[1],
+    "binary label file": lambda d: (label := first_label(d), label.write_bytes(b"\xff\xfe\x00\x81"))[0],
+    "path: names nowhere": lambda d: (set_yaml(d, path="../nowhere"), d / "data.yaml")[1],
+}
+
+#: Each damage meets several commands, spread so that every command sees several kinds.
+ROTATION = ["convert", "split", "augment", "train", "evaluate", "calibrate"]
+DATASET_CASES = [dataset_case(name, damage, ROTATION[(i + k) % len(ROTATION)])
+                 for i, (name, damage) in enumerate(DAMAGES.items()) for k in (0, 3)]
+
+
+def _coco_case(name: str, change: Callable[[dict], None], named: str, command: str = "convert") -> Case:
+    def make(tmp: Path, data: Path):
+        coco = to_coco(data, tmp / "coco")
+        coco_edit(coco, change)
+        return COMMAND_ARGV[command](tmp, coco), coco, named
+
+    return Case(f"{command}: COCO {name}", make)
+
+
+def _duplicate_id(d):
+    d["images"][1]["id"] = d["images"][0]["id"]
+
+
+def _halve_size(d):
+    d["images"][0]["width"] //= 2
+
+
+def _annotation(d):
+    return next(a for a in d["annotations"])
+
+
+COCO_CASES = [
+    _coco_case("duplicate image id", _duplicate_id, "image id"),
+    _coco_case("declared size differs", _halve_size, "is declared", "split"),
+    _coco_case("nan coordinate", lambda d: _annotation(d)["segmentation"][0].__setitem__(1, float("nan")), "not finite",
+               "augment"),
+    _coco_case("unknown image_id", lambda d: _annotation(d).__setitem__("image_id", 999), "image_id 999", "train"),
+    _coco_case("unknown category", lambda d: d["categories"].append({"id": 9, "name": "ball", "supercategory": "p"}),
+               "'ball' names no landmark", "evaluate"),
+    _coco_case("box only", lambda d: _annotation(d).__setitem__("segmentation", []), "segmentation labels needed"),
+    _coco_case("outside the image", lambda d: _annotation(d)["segmentation"][0].__setitem__(0, 5000.0),
+               "outside the", "split"),
+    _coco_case("segmentation is a string", lambda d: _annotation(d).__setitem__("segmentation", "x"), "not a list"),
+    _coco_case("not a COCO file", lambda d: d.clear() or d.update({"images": "x"}), "_annotations.coco.json"),
+]
+
+
+def _out_case(name: str, out: Callable[[Path, Path], Path], command: str, force: bool = True) -> Case:
+    def make(tmp: Path, data: Path):
+        argv = COMMAND_ARGV[command](tmp, data)
+        target = out(tmp, data)
+        argv[argv.index(str(tmp / "out"))] = str(target)
+        return argv + (["--force"] if force else []), data, "overlaps the input" if target.is_dir() or not target.exists() \
+            else target.name
+
+    return Case(f"{command}: --out {name}", make)
+
+
+def _moved_dataset(tmp: Path, data: Path) -> Path:
+    """data.yaml whose ``path:`` names a sibling folder holding the splits; returns that folder."""
+    store = tmp / "store"
+    for split in ("train", "valid", "test"):
+        shutil.move(str(data / split), str(store / split))
+    set_yaml(data, path="../store")
+    return store
+
+
+OUTPUT_CASES = [
+    _out_case("is the input", lambda tmp, d: d, "augment"),
+    _out_case("inside the images folder", lambda tmp, d: d / "train" / "images" / "new", "convert", force=False),
+    _out_case("is the folder path: names", _moved_dataset, "augment"),
+    _out_case("contains the input", lambda tmp, d: d.parent, "split"),
+    _out_case("is an existing file", lambda tmp, d: (tmp / "file.txt", (tmp / "file.txt").write_text("x"))[0], "convert",
+              force=False),
+]
+
+
+def _plain(name: str, build: Callable[[Path, Path], tuple[list[str], Path, str]]) -> Case:
+    return Case(name, build)
+
+
+def _truth_csv(tmp: Path, rows: str) -> Path:
+    path = tmp / "ranges.csv"
+    path.write_text(rows)
+    return path
+
+
+def _calibrate_truth(row: str, named: str) -> Callable:
+    def build(tmp: Path, data: Path):
+        name = first_image(data).name
+        cls = load_dataset(data).split("train")[0].instances
+        code = cls[0].cls if cls else "bp"
+        csv_path = _truth_csv(tmp, "image,class,range_m\n" + row.format(image=name, cls=code) + "\n")
+        return ["calibrate", "--data", str(data), "--truth", str(csv_path), "--out", str(tmp / "out")], tmp, named
+
+    return build
+
+
+def _garbage(tmp: Path, name: str) -> Path:
+    path = tmp / "inputs" / name
+    path.parent.mkdir(exist_ok=True)
+    path.write_bytes(b"\x00garbage\xff" * 50)
+    return path
+
+
+def _utias(tmp: Path, utias: Path, edit: Callable[[Path], None]) -> tuple[list[str], Path, str]:
+    folder = tmp / "inputs" / "utias"
+    shutil.copytree(utias, folder)
+    edit(folder)
+    return ["slam", "--utias", str(folder), "--duration", "20", "--out", str(tmp / "out")], folder, "Odometry.dat"
+
+
+def _odometry(tmp: Path, rows: str) -> tuple[list[str], Path, str]:
+    folder = tmp / "inputs"
+    (folder / "frames").mkdir(parents=True)
+    (folder / "odo.csv").write_text(rows)
+    return ["slam", "--frames", str(folder / "frames"), "--odometry", str(folder / "odo.csv"),
+            "--frontend", "colour-filter", "--out", str(tmp / "out")], folder, "odo.csv"
+
+
+def _swap_odometry_rows(folder: Path) -> None:
+    path = folder / "Odometry.dat"
+    lines = path.read_text().splitlines()
+    data = [i for i, line in enumerate(lines) if line.strip() and not line.startswith("#")]
+    lines[data[5]], lines[data[6]] = lines[data[6]], lines[data[5]]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _poison_odometry(folder: Path, value: str) -> None:
+    path = folder / "Odometry.dat"
+    lines = path.read_text().splitlines()
+    index = next(i for i, line in enumerate(lines) if line.strip() and not line.startswith("#"))
+    parts = lines[index].split()
+    lines[index + 3] = " ".join([parts[0], value, parts[2]])
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _empty_odometry(folder: Path) -> None:
+    (folder / "Odometry.dat").write_text("# Time [s]    forward velocity [m/s]    angular velocity[rad/s]\n")
+
+
+OTHER_CASES = [
+    _plain("synth: --hfov 0", lambda tmp, d: (["synth", "--out", str(tmp / "out"), "--images", "2", "--hfov", "0"], tmp,
+                                               "--hfov")),
+    _plain("synth: --images 0", lambda tmp, d: (["synth", "--out", str(tmp / "out"), "--images", "0"], tmp, "--images")),
+    _plain("synth: backgrounds folder missing", lambda tmp, d: (["synth", "--out", str(tmp / "out"), "--images", "2",
+                                                                 "--backgrounds", str(tmp / "none")], tmp, "none")),
+    _plain("augment: config is broken YAML", lambda tmp, d: (
+        COMMAND_ARGV["augment"](tmp, d) + ["--config", str(_truth_csv(tmp, "rotate_deg: [1\n"))], d, "ranges.csv")),
+    _plain("augment: config has an unknown key", lambda tmp, d: (
+        COMMAND_ARGV["augment"](tmp, d) + ["--config", str(_truth_csv(tmp, "spin: 3\n"))], d, "unknown setting")),
+    _plain("augment: config value of the wrong type", lambda tmp, d: (
+        COMMAND_ARGV["augment"](tmp, d) + ["--config", str(_truth_csv(tmp, "rotate_deg: abc\n"))], d, "ranges.csv")),
+    _plain("export: garbage .pt", lambda tmp, d: (["export", "--weights", str(_garbage(tmp, "best.pt")), "--data", str(d),
+                                                   "--out", str(tmp / "out" / "m.onnx")], tmp / "inputs", "best.pt")),
+    _plain("export: negative --imgsz", lambda tmp, d: (COMMAND_ARGV["export"](tmp, d) + ["--imgsz", "96", "-128"], d,
+                                                        "--imgsz")),
+    _plain("export: missing .pt", lambda tmp, d: (COMMAND_ARGV["export"](tmp, d), d, "none.pt")),
+    _plain("train: --weights garbage", lambda tmp, d: (COMMAND_ARGV["train"](tmp, d) + ["--weights",
+                                                       str(_garbage(tmp, "w.pt"))], tmp / "inputs", "w.pt")),
+    _plain("train: --resume without a run", lambda tmp, d: (["train", "--data", str(d), "--out", str(tmp / "out"),
+                                                             "--resume"], d, "nothing to resume")),
+    _plain("evaluate: garbage .onnx", lambda tmp, d: (["evaluate", "--model", str(_garbage(tmp, "m.onnx")), "--data",
+                                                       str(d), "--out", str(tmp / "out")], tmp / "inputs", "m.onnx")),
+    _plain("evaluate: unknown model kind", lambda tmp, d: (["evaluate", "--model", "model.h5", "--data", str(d),
+                                                            "--out", str(tmp / "out")], d, "model.h5")),
+    _plain("calibrate: range inf", _calibrate_truth("{image},{cls},inf", "ranges.csv:2")),
+    _plain("calibrate: range 0", _calibrate_truth("{image},{cls},0", "ranges.csv:2")),
+    _plain("calibrate: range not a number", _calibrate_truth("{image},{cls},far", "ranges.csv:2")),
+    _plain("calibrate: unknown class", _calibrate_truth("{image},ball,1.0", "ranges.csv:2")),
+    _plain("calibrate: --embed into garbage", lambda tmp, d: (
+        ["calibrate", "--data", str(d), "--out", str(tmp / "out"), "--embed", str(_garbage(tmp, "m.onnx"))],
+        tmp / "inputs", "m.onnx")),
+    _plain("slam: odometry CSV with nan", lambda tmp, d: _odometry(tmp, "t,x,y,theta\n0,0,0,0\n1,nan,0,0\n")),
+    _plain("slam: odometry CSV without header", lambda tmp, d: _odometry(tmp, "0,0,0,0\n1,1,0,0\n")),
+    _plain("slam: odometry CSV with one row", lambda tmp, d: _odometry(tmp, "t,x,y,theta\n0,0,0,0\n")),
+    _plain("slam: frames without odometry", lambda tmp, d: (["slam", "--frames", str(tmp), "--out", str(tmp / "out")],
+                                                            d, "--odometry")),
+]
+
+
+def _utias_case(name: str, edit: Callable[[Path], None]) -> Case:
+    def make(tmp: Path, data: Path):
+        from tests.conftest import SHARED
+
+        utias = SHARED / "utias-mrclam" / "dataset0"
+        if not (utias / "Odometry.dat").is_file():
+            pytest.skip("../shared/utias-mrclam is not on this machine")
+        return _utias(tmp, utias, edit)
+
+    return Case(f"slam: UTIAS {name}", make)
+
+
+UTIAS_CASES = [
+    _utias_case("unsorted time stamps", _swap_odometry_rows),
+    _utias_case("nan in odometry", lambda f: _poison_odometry(f, "nan")),
+    _utias_case("inf in odometry", lambda f: _poison_odometry(f, "inf")),
+    _utias_case("binary odometry", lambda f: (f / "Odometry.dat").write_bytes(b"\x00\xff\xfe" * 100)),
+    _utias_case("empty odometry", _empty_odometry),
+]
+
+CASES = DATASET_CASES + COCO_CASES + OUTPUT_CASES + OTHER_CASES + UTIAS_CASES
+
+
+def test_the_corpus_is_large_enough():
+    assert len(CASES) >= 60
+    assert {c.name.split(":")[0] for c in CASES} >= {"convert", "split", "augment", "train", "evaluate", "calibrate",
+                                                      "export", "slam", "synth"}
+
+
+@pytest.mark.parametrize("case", CASES, ids=lambda c: c.name)
+def test_bad_input_is_refused_clearly_and_nothing_changes(case, dataset_copy, tmp_path, capsys):
+    argv, guarded, named = case.make(tmp_path, dataset_copy)
+    before = tree_hash(guarded)
+    outputs_before = {p for p in tmp_path.iterdir()}
+    status = main(argv)
+    error = capsys.readouterr().err
+    assert status == 2, error
+    assert named in error, error
+    assert "Traceback" not in error and "unexpected error" not in error
+    assert len(error.strip().splitlines()) <= 25
+    assert tree_hash(guarded) == before
+    assert not (tmp_path / "out").exists() and not list(tmp_path.glob(".out*"))
+    new = {p for p in tmp_path.iterdir()} - outputs_before
+    assert not new, new

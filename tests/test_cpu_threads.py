@@ -1,0 +1,39 @@
+"""The thread tuner keeps the thread count that trains fastest, on an idle machine and on a busy one."""
+from __future__ import annotations
+
+import pytest
+
+import detector.cpu_threads as cpu_threads
+from detector.cpu_threads import ThreadTuner
+
+
+@pytest.mark.parametrize("seconds_per_batch, expected", [({1: 2.1, 2: 1.1}, 2),   # idle: two threads help
+                                                         ({1: 2.3, 2: 3.3}, 1)])  # beside a CPU hog: one is faster
+def test_tuner_settles_on_the_faster_thread_count(seconds_per_batch, expected, monkeypatch):
+    state = {"threads": 2, "clock": 0.0}
+    monkeypatch.setattr(cpu_threads.torch, "set_num_threads", lambda n: state.__setitem__("threads", n))
+    monkeypatch.setattr(cpu_threads.torch, "get_num_threads", lambda: state["threads"])
+    monkeypatch.setattr(cpu_threads.time, "perf_counter", lambda: state["clock"])
+    tuner = ThreadTuner(most=2, probe_every=6, window=3)
+    kept = []
+    for _ in range(60):
+        state["clock"] += seconds_per_batch[state["threads"]]
+        tuner()
+        kept.append(tuner.threads)
+    assert tuner.threads == expected and kept[-20:] == [expected] * 20
+    assert len(tuner.history) >= 3  # it keeps probing, so it follows a load that comes and goes
+
+
+def test_tuner_follows_a_load_that_arrives(monkeypatch):
+    state = {"threads": 2, "clock": 0.0}
+    monkeypatch.setattr(cpu_threads.torch, "set_num_threads", lambda n: state.__setitem__("threads", n))
+    monkeypatch.setattr(cpu_threads.torch, "get_num_threads", lambda: state["threads"])
+    monkeypatch.setattr(cpu_threads.time, "perf_counter", lambda: state["clock"])
+    tuner = ThreadTuner(most=2, probe_every=6, window=3)
+    for batch in range(120):
+        busy = batch >= 40
+        state["clock"] += {1: 2.3, 2: 3.3}[state["threads"]] if busy else {1: 2.1, 2: 1.1}[state["threads"]]
+        tuner()
+        if batch == 39:
+            assert tuner.threads == 2
+    assert tuner.threads == 1

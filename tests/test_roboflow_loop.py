@@ -1,0 +1,187 @@
+"""Real exports through every command: class identity by name, COCO everywhere, box-only exports refused, valid
+oddities accepted, a check report a person can read."""
+from __future__ import annotations
+
+import json
+from collections import Counter
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import yaml
+
+from detector.cli import main
+from detector.datasets import load_dataset
+from detector.datasets.labels import BOX_ONLY
+from tests.test_bad_input import first_image, first_label, to_coco, tree_hash
+
+ALPHABETICAL = ["bp", "gp", "pb", "pg", "py", "yp"]  # how Roboflow orders the six classes
+
+
+def poles_by_name(data: Path) -> Counter:
+    """(image stem, class, outline centre rounded to 1/100) for every pole: equal means same poles, same classes."""
+    return Counter((s.image.stem, i.cls, *np.round(i.polygon.mean(axis=0), 2)) for s in load_dataset(data).samples
+                   if s.image is not None for i in s.instances)
+
+
+def reorder_classes(data: Path, names: list[str]) -> None:
+    """Rewrite data.yaml with ``names`` and every label's class ids to match: the same poles, another order."""
+    old = yaml.safe_load((data / "data.yaml").read_text())["names"]
+    for label in data.rglob("labels/*.txt"):
+        lines = [line.split() for line in label.read_text().splitlines() if line.strip()]
+        label.write_text("".join(" ".join([str(names.index(old[int(t[0])]))] + t[1:]) + "\n" for t in lines))
+    config = yaml.safe_load((data / "data.yaml").read_text())
+    config["names"] = names
+    (data / "data.yaml").write_text(yaml.safe_dump(config))
+
+
+@pytest.fixture
+def alphabetical(dataset_copy) -> Path:
+    reorder_classes(dataset_copy, ALPHABETICAL)
+    return dataset_copy
+
+
+def test_alphabetical_export_keeps_every_class_through_every_command(alphabetical, tmp_path, capsys):
+    truth = poles_by_name(alphabetical)
+    assert {c for _, c, *_ in truth} >= {"pb", "yp"}
+    assert main(["check", str(alphabetical)]) == 0
+    assert main(["convert", str(alphabetical), "--out", str(tmp_path / "converted")]) == 0
+    assert main(["split", "--data", str(alphabetical), "--out", str(tmp_path / "split")]) == 0
+    assert main(["augment", "--data", str(alphabetical), "--out", str(tmp_path / "augmented"), "--copies", "1"]) == 0
+    for out in ("converted", "split"):
+        assert poles_by_name(tmp_path / out) == truth, out
+    augmented = poles_by_name(tmp_path / "augmented")
+    assert all(augmented[key] >= count for key, count in truth.items())  # originals kept, copies added
+
+
+def test_alphabetical_export_trains_exports_and_evaluates(alphabetical, tmp_path):
+    before = tree_hash(alphabetical)
+    run = tmp_path / "run"
+    assert main(["train", "--data", str(alphabetical), "--out", str(run), "--weights", "scratch", "--epochs", "1",
+                 "--imgsz", "64", "--batch", "8"]) == 0
+    view = load_dataset(run / "dataset")
+    assert poles_by_name(run / "dataset") == poles_by_name(alphabetical)
+    assert yaml.safe_load((run / "dataset" / "data.yaml").read_text())["names"] == ["bp", "gp", "yp", "pb", "pg", "py"]
+    assert len(view.samples) == len(load_dataset(alphabetical).samples)
+    assert main(["export", "--weights", str(run / "weights" / "best.pt"), "--out", str(tmp_path / "m.onnx"),
+                 "--imgsz", "96", "128", "--data", str(alphabetical), "--conf", "0.9"]) == 0
+    assert main(["evaluate", "--data", str(alphabetical), "--out", str(tmp_path / "eval")]) == 0
+    assert tree_hash(alphabetical) == before
+
+
+def test_single_class_export_keeps_its_class(dataset_copy, tmp_path):
+    reorder_classes(dataset_copy, ["bp", "gp", "yp", "pb", "pg", "py"])
+    for label in dataset_copy.rglob("labels/*.txt"):  # keep only pb poles, as class 0 of names ['pb']
+        lines = [line.split() for line in label.read_text().splitlines() if line.strip()]
+        label.write_text("".join(" ".join(["0"] + t[1:]) + "\n" for t in lines if t[0] == "3"))
+    config = yaml.safe_load((dataset_copy / "data.yaml").read_text())
+    (dataset_copy / "data.yaml").write_text(yaml.safe_dump({**config, "names": ["pb"], "nc": 1}))
+    truth = poles_by_name(dataset_copy)
+    assert truth and {c for _, c, *_ in truth} == {"pb"}
+    assert main(["split", "--data", str(dataset_copy), "--out", str(tmp_path / "split")]) == 0
+    assert poles_by_name(tmp_path / "split") == truth
+
+
+def test_coco_export_keeps_its_poles_through_split_augment_and_train(synth_dataset, tmp_path):
+    coco = to_coco(synth_dataset, tmp_path / "coco")
+    truth = poles_by_name(coco)
+    assert sum(truth.values()) > 0
+    assert main(["split", "--data", str(coco), "--out", str(tmp_path / "split")]) == 0
+    assert main(["augment", "--data", str(coco), "--out", str(tmp_path / "aug"), "--copies", "1"]) == 0
+    assert poles_by_name(tmp_path / "split") == truth
+    assert all(poles_by_name(tmp_path / "aug")[key] >= n for key, n in truth.items())
+    before = tree_hash(coco)
+    assert main(["train", "--data", str(coco), "--out", str(tmp_path / "run"), "--weights", "scratch", "--epochs", "1",
+                 "--imgsz", "64", "--batch", "8"]) == 0
+    assert tree_hash(coco) == before
+
+
+def box_only(data: Path) -> Path:
+    """Turn every polygon into a YOLO box line (class cx cy w h), as a detection export writes them."""
+    for label in data.rglob("labels/*.txt"):
+        lines = []
+        for line in label.read_text().splitlines():
+            values = np.array(line.split()[1:], float).reshape(-1, 2)
+            (x0, y0), (x1, y1) = values.min(0), values.max(0)
+            lines.append(f"{line.split()[0]} {(x0 + x1) / 2:.6f} {(y0 + y1) / 2:.6f} {x1 - x0:.6f} {y1 - y0:.6f}\n")
+        label.write_text("".join(lines))
+    return data
+
+
+@pytest.mark.parametrize("command", ["check-fix", "convert", "split", "augment", "train", "evaluate"])
+def test_box_only_export_is_refused_in_the_same_words_and_never_fixed(command, dataset_copy, tmp_path, capsys):
+    data = box_only(dataset_copy)
+    out = tmp_path / "out"
+    argv = {"check-fix": ["check", str(data), "--fix", "--out", str(out)],
+            "convert": ["convert", str(data), "--out", str(out)],
+            "split": ["split", "--data", str(data), "--out", str(out)],
+            "augment": ["augment", "--data", str(data), "--out", str(out)],
+            "train": ["train", "--data", str(data), "--out", str(out), "--epochs", "1", "--imgsz", "64"],
+            "evaluate": ["evaluate", "--data", str(data), "--out", str(out)]}[command]
+    assert main(argv) == 2
+    captured = capsys.readouterr()
+    assert BOX_ONLY in captured.err + captured.out
+    assert not out.exists()
+
+
+def test_check_summarises_many_problems_and_writes_the_whole_list(dataset_copy, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for label in sorted(dataset_copy.rglob("labels/*.txt")):
+        label.write_text(label.read_text() + "9 0.1 0.1 0.2 0.1 0.2 0.2\n0 0.1 0.1 0.2\n")
+    assert main(["check", str(dataset_copy)]) == 1
+    printed = capsys.readouterr().out
+    listing = tmp_path / f"check-{dataset_copy.name}.txt"
+    assert listing.is_file() and len(listing.read_text().splitlines()) >= 48
+    assert "24 x error: class id 9 out of range" in printed.replace("\n", " ") or "x error" in printed
+    assert len(printed.splitlines()) < 40
+
+
+def test_rename_maps_an_exports_own_class_names(dataset_copy, tmp_path, capsys):
+    truth = poles_by_name(dataset_copy)
+    config = yaml.safe_load((dataset_copy / "data.yaml").read_text())
+    names = ["blue-pink", "green-pink", "yellow-pink", "pink-blue", "pink-green", "ball-pole"]
+    (dataset_copy / "data.yaml").write_text(yaml.safe_dump({**config, "names": names}))
+    assert main(["convert", str(dataset_copy), "--out", str(tmp_path / "refused")]) == 2
+    assert "'ball-pole' names no landmark" in capsys.readouterr().err
+    assert main(["convert", str(dataset_copy), "--out", str(tmp_path / "out"), "--rename", "ball-pole=py"]) == 0
+    assert poles_by_name(tmp_path / "out") == truth and sum(truth.values()) > 0
+
+
+def test_valid_oddities_are_accepted_unchanged(dataset_copy, tmp_path):
+    label = first_label(dataset_copy)
+    label.write_bytes(b"\xef\xbb\xbf" + label.read_bytes().replace(b"\n", b"\r\n"))  # UTF-8 BOM and CRLF
+    images = sorted((dataset_copy / "test" / "images").glob("*.jpg"))
+    frame = cv2.imread(str(images[0]))
+    cv2.imwrite(str(images[0].with_suffix(".png")), frame)  # a PNG named .jpg
+    images[0].unlink()
+    images[0].with_suffix(".png").rename(images[0])
+    cv2.imwrite(str(images[1]), cv2.cvtColor(cv2.imread(str(images[1])), cv2.COLOR_BGR2GRAY))  # grey
+    sixteen = images[2].with_suffix(".png")
+    cv2.imwrite(str(sixteen), cv2.imread(str(images[2])).astype(np.uint16) * 257)  # 16-bit
+    images[2].unlink()
+    (images[2].parent.parent / "labels" / f"{images[2].stem}.txt").rename(
+        images[2].parent.parent / "labels" / f"{sixteen.stem}.txt")
+    config = yaml.safe_load((dataset_copy / "data.yaml").read_text())
+    spelt = ["Blue over Pink", "green-pink", "yellow / pink", "pink-blue", "Pink Green", "pink-yellow"]
+    (dataset_copy / "data.yaml").write_text(yaml.safe_dump({**config, "names": spelt}))
+    truth = poles_by_name(dataset_copy)
+    assert main(["check", str(dataset_copy)]) == 0
+    assert main(["convert", str(dataset_copy), "--out", str(tmp_path / "out")]) == 0
+    assert poles_by_name(tmp_path / "out") == truth
+
+
+def test_coco_without_sizes_and_with_flat_polygons_and_a_foreign_annotations_file(synth_dataset, tmp_path, capsys):
+    coco = to_coco(synth_dataset, tmp_path / "coco")
+    path = coco / "train" / "_annotations.coco.json"
+    data = json.loads(path.read_text())
+    for image in data["images"]:
+        image.pop("width"), image.pop("height")
+    for annotation in data["annotations"]:
+        annotation["segmentation"] = annotation["segmentation"][0]
+    path.write_text(json.dumps(data))
+    assert main(["convert", str(coco), "--out", str(tmp_path / "yolo")]) == 0
+    assert poles_by_name(tmp_path / "yolo") == poles_by_name(synth_dataset)
+    (tmp_path / "yolo" / "annotations.json").write_text(json.dumps([{"file": "x.jpg"}]))
+    assert main(["evaluate", "--data", str(tmp_path / "yolo"), "--out", str(tmp_path / "eval")]) == 0
+    assert "not an annotations.json of `poles synth`" in capsys.readouterr().out
