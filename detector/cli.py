@@ -27,6 +27,18 @@ def _size(text: str) -> tuple[int, int]:
     return width, height
 
 
+def _threads(text: str) -> int | str:
+    if text == "auto":
+        return text
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--threads {text!r}: give a number of threads or `auto`") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"--threads {value}: at least 1")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="poles", description="Coloured-pole landmark detector pipeline for the Nao.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -96,7 +108,8 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--batch", type=int, default=8)
     train.add_argument("--patience", type=int, default=50, help="stop after this many epochs without improvement")
     train.add_argument("--seed", type=int, default=0)
-    train.add_argument("--threads", type=int, help="torch threads (default: every core)")
+    train.add_argument("--threads", type=_threads, help="torch threads: a number, or `auto` to re-time the count "
+                                                      "while training (default: every core)")
     train.add_argument("--workers", type=int, default=0, help="data-loader processes (default 0: best on 2 cores)")
     train.add_argument("--no-cache", action="store_true", help="do not cache decoded images in RAM")
     train.add_argument("--device", default="cpu",
@@ -162,6 +175,16 @@ def build_parser() -> argparse.ArgumentParser:
     slam.add_argument("--compare", type=int, metavar="SEEDS",
                       help="also run every back end on SEEDS seeds and print the comparison table")
     slam.add_argument("--out", type=Path, required=True)
+
+    predict = sub.add_parser("predict", help="pre-label new frames for Roboflow, or draw a model's view on a video")
+    source = predict.add_mutually_exclusive_group(required=True)
+    source.add_argument("--images", type=Path, help="folder of unlabelled frames: write pre-annotations to --out")
+    source.add_argument("--video", type=Path, help="video file or folder of frames in order: write an overlay MP4")
+    predict.add_argument("--out", type=Path, required=True, help="dataset folder (--images) or video.mp4 (--video)")
+    predict.add_argument("--model", type=Path, help="ONNX model (default: the shipped model)")
+    predict.add_argument("--conf", type=float, help="confidence threshold (default: the model's own)")
+    predict.add_argument("--format", choices=("yolov8", "coco"), default="yolov8", help="pre-annotation layout")
+    predict.add_argument("--force", action="store_true")
 
     demo = sub.add_parser("demo", help="run the whole pipeline on a synthetic dataset and write report.html")
     demo.add_argument("--out", type=Path, default=Path("runs/demo"))
@@ -288,7 +311,8 @@ def _train(args: argparse.Namespace) -> int:
     if not args.resume:
         print(f"starting from {weights or f'{model}.yaml (no pretrained weights)'}")
     settings = TrainSettings(model=model or "yolov8n-seg", epochs=args.epochs, imgsz=args.imgsz, batch=args.batch,
-                             patience=args.patience, seed=args.seed, threads=args.threads, workers=args.workers,
+                             patience=args.patience, seed=args.seed, threads=None if args.threads == "auto" else args.threads,
+                             adaptive_threads=args.threads == "auto", workers=args.workers,
                              cache=not args.no_cache, time_hours=args.time, device=args.device)
     run = train_model(args.data, args.out, settings, weights=weights, resume=args.resume)
     best = summarise_run(run)
@@ -333,6 +357,19 @@ def _evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _predict(args: argparse.Namespace) -> int:
+    from detector.prediction import overlay_video, prelabel
+
+    if args.images is not None:
+        result = prelabel(args.images, args.out, args.model, args.conf, args.format, args.force)
+        print(f"pre-labelled {result['frames']} frames ({result['poles']} poles, {result['empty']} without) at conf "
+              f"{result['conf']:.2f}: {result['out']} - upload it to Roboflow as pre-annotations, correct, export")
+    else:
+        result = overlay_video(args.video, args.out, args.model, args.conf, args.force)
+        print(f"wrote {result['frames']} frames to {result['video']} and the contact sheet {result['sheet']}")
+    return 0
+
+
 #: ``poles evaluate``'s threshold for a model that stores none.
 FALLBACK_CONF = 0.5
 
@@ -345,7 +382,7 @@ def _demo(args: argparse.Namespace) -> int:
 
 COMMANDS = {"synth": _synth, "check": _check, "convert": _convert, "augment": _augment, "split": _split,
             "train": _train, "export": _export, "calibrate": _calibrate, "evaluate": _evaluate,
-            "slam": _slam, "demo": _demo}
+            "slam": _slam, "predict": _predict, "demo": _demo}
 
 if __name__ == "__main__":
     sys.exit(main())

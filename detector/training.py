@@ -64,6 +64,8 @@ class TrainSettings:
     time_hours: float | None = None
     #: Ultralytics' device string: "cpu" (default), "0", "0,1" (DDP across GPUs) or "mps".
     device: str = "cpu"
+    #: Let ``ThreadTuner`` pick the thread count by timing batches (``--threads auto``); off by default (see README).
+    adaptive_threads: bool = False
 
     def __post_init__(self) -> None:
         if self.model not in MODELS:
@@ -107,7 +109,7 @@ def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | 
     tuner = None
     if settings.device == "cpu":
         threads = use_all_cores(settings.threads)
-        tuner = ThreadTuner(threads) if settings.threads is None else None
+        tuner = ThreadTuner(threads) if settings.adaptive_threads else None
     if resume:
         last = out / "weights" / "last.pt"
         data_yaml = _resumable_data(last)  # before Ultralytics sees the path: it would look for a missing file online
@@ -123,7 +125,7 @@ def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | 
         data_yaml = training_view(dataset, out / "dataset")
         model = YOLO(str(weights) if weights else f"{settings.model}.yaml", task="segment")
         options = asdict(settings)
-        for name in ("model", "threads"):
+        for name in ("model", "threads", "adaptive_threads"):
             options.pop(name)
         options["time"] = options.pop("time_hours")
         _train(model, tuner, data=str(data_yaml), project=str(out.parent), name=out.name, exist_ok=True,

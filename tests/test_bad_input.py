@@ -14,7 +14,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
-import numpy as np
 import pytest
 import yaml
 
@@ -358,3 +357,26 @@ def test_bad_input_is_refused_clearly_and_nothing_changes(case, dataset_copy, tm
     assert not (tmp_path / "out").exists() and not list(tmp_path.glob(".out*"))
     new = {p for p in tmp_path.iterdir()} - outputs_before
     assert not new, new
+
+
+@pytest.mark.parametrize("signal_name, status", [("SIGTERM", 143), ("SIGINT", 130)])
+def test_an_interrupted_command_leaves_nothing_and_says_one_line(signal_name, status, tmp_path):
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "out"
+    process = subprocess.Popen([sys.executable, "-c", "import sys; from detector.cli import main; sys.exit(main())",
+                                "synth", "--out", str(out), "--images", "5000", "--workers", "1", "--size", "160x120"],
+                               stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 60
+    while not list(tmp_path.glob(".out.partial-*")) and time.time() < deadline:
+        time.sleep(0.2)
+    time.sleep(1.0)
+    process.send_signal(getattr(signal, signal_name))
+    _, error = process.communicate(timeout=60)
+    assert process.returncode == status, error
+    lines = [line for line in error.splitlines() if line.strip() and "rendering" not in line]
+    assert len(lines) == 1 and "Traceback" not in error, error
+    assert list(tmp_path.iterdir()) == []

@@ -14,7 +14,7 @@ import yaml
 from detector.cli import main
 from detector.datasets import load_dataset
 from detector.datasets.labels import BOX_ONLY
-from tests.test_bad_input import first_image, first_label, to_coco, tree_hash
+from tests.test_bad_input import first_label, to_coco, tree_hash
 
 ALPHABETICAL = ["bp", "gp", "pb", "pg", "py", "yp"]  # how Roboflow orders the six classes
 

@@ -4,8 +4,7 @@ that ``poles check`` would reject.
 
 ``training_view`` gives Ultralytics a dataset it can read without touching the input: a folder inside the run with
 links to the images and label files written by class name in the canonical order (copies where links are not
-allowed).
-Ultralytics' ``labels.cache`` files land there, never in the user's dataset.
+allowed). Ultralytics' ``labels.cache`` files land there, never in the user's dataset.
 """
 from __future__ import annotations
 

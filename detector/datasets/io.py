@@ -139,6 +139,21 @@ def _duplicate_stems(samples: list[Sample]) -> list[Problem]:
     return problems
 
 
+def check_output_folder(out: str | Path, force: bool, protect: tuple[Path, ...]) -> Path:
+    """The resolved output folder, or an error: it is a file, overlaps an input folder (never allowed, even with
+    ``force``), or holds files and ``force`` is not set."""
+    out = Path(out).resolve()
+    if out.exists() and not out.is_dir():
+        raise FileExistsError(f"--out {out} is a file: give a folder for the dataset")
+    for guarded in protect:
+        guarded = Path(guarded).resolve()
+        if out == guarded or guarded in out.parents or out in guarded.parents:
+            raise ValueError(f"output {out} overlaps the input {guarded}: choose another --out (inputs are never written)")
+    if out.exists() and any(out.iterdir()) and not force:
+        raise FileExistsError(f"{out} exists and is not empty: choose another --out or pass --force to replace it")
+    return out
+
+
 class DatasetWriter:
     """Write a dataset in the Roboflow layout into a temporary sibling folder, then move it into place.
 
@@ -147,15 +162,7 @@ class DatasetWriter:
     """
 
     def __init__(self, out: str | Path, *, force: bool = False, protect: tuple[Path, ...] = ()):
-        self.out = Path(out).resolve()
-        if self.out.exists() and not self.out.is_dir():
-            raise FileExistsError(f"--out {self.out} is a file: give a folder for the dataset")
-        for guarded in protect:
-            guarded = Path(guarded).resolve()
-            if self.out == guarded or guarded in self.out.parents or self.out in guarded.parents:
-                raise ValueError(f"output {self.out} overlaps the input {guarded}: choose another --out (inputs are never written)")
-        if self.out.exists() and any(self.out.iterdir()) and not force:
-            raise FileExistsError(f"{self.out} exists and is not empty: choose another --out or pass --force to replace it")
+        self.out = check_output_folder(out, force, protect)
         self.force = force
         self.counts = {split: 0 for split in SPLITS}
 

@@ -1,0 +1,195 @@
+"""``poles predict``: run a pole model on new frames.
+
+Pre-labelling writes a dataset Roboflow uploads as pre-annotations (YOLOv8 or COCO layout, simplified polygons,
+class names, an empty label for a frame with nothing), so labelling the next batch is correcting, not drawing.
+An overlay video draws each frame's masks, class, confidence, range and bearing, with a contact sheet beside it.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+import cv2
+import numpy as np
+from tqdm import tqdm
+
+from detector.datasets.io import IMAGE_SUFFIXES, DatasetWriter, check_output_folder
+from detector.datasets.model import Instance
+from detector.datasets.polygons import mask_to_polygon
+from detector.preview import CLASS_BGR, contact_sheet
+from naoslam.detector import Detection, LandmarkDetector
+from naoslam.landmarks import CLASSES
+from naoslam.measurement import MeasurementModel
+
+#: Outline simplification for pre-labels (px): few vertices to correct, still within a pixel of the mask.
+PRELABEL_EPSILON_PX = 1.0
+#: Frame rate of a video made from a folder of frames (the Nao's top camera).
+FOLDER_FPS = 15.0
+#: Tiles in the contact sheet beside a video.
+SHEET_TILES = 12
+
+
+def frames_in(source: Path) -> tuple[int, float, Iterator[tuple[str, np.ndarray]]]:
+    """(frame count, frames per second, (name, BGR frame) in order) of a folder of images or a video file."""
+    source = Path(source)
+    if source.is_dir():
+        paths = sorted(p for p in source.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+        if not paths:
+            raise ValueError(f"{source}: no images ({', '.join(sorted(IMAGE_SUFFIXES))}) in it")
+        return len(paths), FOLDER_FPS, (_read(p) for p in paths)
+    capture = cv2.VideoCapture(str(source))
+    count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) if capture.isOpened() else 0
+    if count <= 0:
+        raise ValueError(f"{source}: not a readable video or folder of frames")
+    fps = capture.get(cv2.CAP_PROP_FPS) or FOLDER_FPS
+
+    def decode() -> Iterator[tuple[str, np.ndarray]]:
+        index = 0
+        while True:
+            ok, frame = capture.read()
+            if not ok:
+                break
+            yield f"{source.stem}_{index:05d}.jpg", frame
+            index += 1
+        capture.release()
+
+    return count, fps, decode()
+
+
+def _read(path: Path) -> tuple[str, np.ndarray]:
+    frame = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if frame is None:
+        raise ValueError(f"{path}: cannot be decoded as an image - remove it or re-save it")
+    return path.name, frame
+
+
+def detections_to_instances(detections: list[Detection], frame_hw: tuple[int, int]) -> list[Instance]:
+    """Each detection's mask as a simplified, normalised outline (detections without an outline are skipped)."""
+    h, w = frame_hw
+    instances = []
+    for d in detections:
+        polygon = mask_to_polygon(d.full_mask((h, w)), epsilon_px=PRELABEL_EPSILON_PX)
+        if polygon is not None:
+            instances.append(Instance(d.name, polygon / np.array([w, h], np.float64)))
+    return instances
+
+
+def prelabel(images: Path, out: Path, model: Path | None = None, conf: float | None = None, fmt: str = "yolov8",
+             force: bool = False, progress: bool = True) -> dict:
+    """Write pre-annotations for every frame in ``images`` to ``out`` (all in the train split); returns counts."""
+    if fmt not in ("yolov8", "coco"):
+        raise ValueError(f"--format {fmt!r}: choose yolov8 or coco")
+    detector = LandmarkDetector(model, conf=conf)
+    count, _, frames = frames_in(images)
+    labelled: list[tuple[str, np.ndarray, list[Instance]]] = []
+    for name, frame in tqdm(frames, total=count, desc="pre-labelling", unit="img", disable=not progress):
+        labelled.append((name, frame, detections_to_instances(detector(frame), frame.shape[:2])))
+    source = {name: images / name for name, _, _ in labelled} if Path(images).is_dir() else {}
+    if fmt == "yolov8":
+        with DatasetWriter(out, force=force, protect=(Path(images).resolve(),)) as writer:
+            for name, frame, instances in labelled:
+                writer.add("train", name, source.get(name) or _jpeg(frame), instances)
+    else:
+        _write_coco(out, labelled, source, force, protect=Path(images).resolve())
+    poles = sum(len(i) for _, _, i in labelled)
+    return {"frames": len(labelled), "poles": poles, "empty": sum(1 for _, _, i in labelled if not i),
+            "conf": detector.conf, "model": str(detector.path), "format": fmt, "out": str(Path(out).resolve())}
+
+
+def _jpeg(frame: np.ndarray) -> bytes:
+    return cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, 95])[1].tobytes()
+
+
+def _write_coco(out: Path, labelled, source: dict[str, Path], force: bool, protect: Path) -> None:
+    """Roboflow's COCO layout: ``train/`` holding the images and ``_annotations.coco.json`` (pixel polygons)."""
+    out = check_output_folder(out, force, (protect,))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+    try:
+        (tmp / "train").mkdir()
+        categories = [{"id": i, "name": code, "supercategory": "poles"} for i, code in enumerate(CLASSES)]
+        images, annotations = [], []
+        for index, (name, frame, instances) in enumerate(labelled):
+            target = tmp / "train" / name
+            shutil.copyfile(source[name], target) if name in source else target.write_bytes(_jpeg(frame))
+            h, w = frame.shape[:2]
+            images.append({"id": index, "file_name": name, "width": w, "height": h})
+            for inst in instances:
+                pixels = inst.pixels(w, h)
+                x0, y0 = pixels.min(axis=0)
+                x1, y1 = pixels.max(axis=0)
+                annotations.append({"id": len(annotations), "image_id": index, "category_id": CLASSES.index(inst.cls),
+                                    "segmentation": [np.round(pixels.reshape(-1), 2).tolist()], "iscrowd": 0,
+                                    "bbox": [round(float(v), 2) for v in (x0, y0, x1 - x0, y1 - y0)],
+                                    "area": round(float((x1 - x0) * (y1 - y0)), 2)})
+        (tmp / "train" / "_annotations.coco.json").write_text(json.dumps(
+            {"images": images, "annotations": annotations, "categories": categories}))
+        if out.exists():
+            shutil.rmtree(out)
+        os.replace(tmp, out)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def overlay_video(source: Path, out: Path, model: Path | None = None, conf: float | None = None,
+                  force: bool = False, progress: bool = True) -> dict:
+    """Write ``out`` (MP4, one frame per input frame, at the input's size) and ``out`` with ``.png`` (contact sheet)."""
+    out = Path(out)
+    if out.suffix.lower() != ".mp4":
+        raise ValueError(f"--out {out}: the overlay video is written as MP4 - name it *.mp4")
+    if out.exists() and not force:
+        raise FileExistsError(f"{out} exists - pick another --out or add --force")
+    if Path(source).is_dir() and Path(source).resolve() in out.resolve().parents:
+        raise ValueError(f"--out {out} lies inside the frames folder {source}: inputs are never written")
+    detector = LandmarkDetector(model, conf=conf)
+    measurer = MeasurementModel(detector.calibration, detector.conf) if detector.calibration else None
+    count, fps, frames = frames_in(source)
+    every = max(1, count // SHEET_TILES)
+    tiles, written, writer, size = [], 0, None, None
+    tmp = out.with_name(f".{out.stem}.partial.mp4")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        for index, (name, frame) in enumerate(tqdm(frames, total=count, desc="overlay", unit="frame",
+                                                   disable=not progress)):
+            if writer is None:
+                size = frame.shape[1::-1]
+                writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
+                if not writer.isOpened():
+                    raise OSError(f"{out}: OpenCV cannot write MP4 here")
+            if frame.shape[1::-1] != size:  # a folder of frames of mixed sizes: the video keeps the first's
+                frame = cv2.resize(frame, size)
+            drawn = draw_detections(frame, detector(frame), measurer)
+            writer.write(drawn)
+            written += 1
+            if index % every == 0 and len(tiles) < SHEET_TILES:
+                tiles.append((drawn, name))
+        writer.release()
+        os.replace(tmp, out)
+    finally:
+        if writer is not None:
+            writer.release()
+        tmp.unlink(missing_ok=True)
+    sheet = contact_sheet(tiles, out.with_suffix(".png"))
+    return {"frames": written, "fps": fps, "video": str(out), "sheet": str(sheet), "conf": detector.conf}
+
+
+def draw_detections(frame: np.ndarray, detections: list[Detection], measurer: MeasurementModel | None) -> np.ndarray:
+    """The frame with each mask tinted in its class colour and labelled: class, confidence, range and bearing."""
+    out = frame.copy()
+    h, w = out.shape[:2]
+    scale = max(0.4, w / 1600)
+    for d in detections:
+        colour = np.array(CLASS_BGR[CLASSES.index(d.name)], np.float32)
+        mask = d.full_mask((h, w))
+        out[mask] = (0.55 * out[mask] + 0.45 * colour).astype(np.uint8)
+        x0, y0 = int(d.box[0]), int(d.box[1])
+        text = f"{d.name} {d.confidence:.2f}"
+        for m in measurer.measure([d], w) if measurer else []:
+            text += f" {m.range_m:.2f} m {np.degrees(m.bearing_rad):+.1f} deg"
+        cv2.putText(out, text, (x0, max(y0 - 5, 12)), cv2.FONT_HERSHEY_SIMPLEX, scale, colour.tolist(),
+                    max(1, round(2 * scale)), cv2.LINE_AA)
+    return out

@@ -1,0 +1,79 @@
+"""`poles predict`: pre-labels that check reads clean and that round-trip, overlay videos frame for frame."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from detector.cli import main
+from detector.datasets import load_dataset
+from detector.synth.render import render_scene
+from detector.synth.scene import calibration_scene
+from naoslam.camera import PinholeCamera
+
+CODES = ("bp", "gp", "yp", "pb", "pg", "py")
+
+
+@pytest.fixture(scope="module")
+def frames(tmp_path_factory) -> Path:
+    """Six rendered 640x480 frames with one pole each, and one frame with none."""
+    folder = tmp_path_factory.mktemp("frames")
+    camera = PinholeCamera(640, 480)
+    for index, code in enumerate(CODES):
+        scene = calibration_scene(np.random.default_rng(index), camera, code, 1.0 + 0.5 * index, 10.0 - 4 * index)
+        image = (render_scene(scene).image * 255 + 0.5).astype(np.uint8)
+        cv2.imwrite(str(folder / f"{index:02d}_{code}.jpg"), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+    cv2.imwrite(str(folder / "99_empty.jpg"), np.full((480, 640, 3), 90, np.uint8))
+    return folder
+
+
+def classes_by_image(data: Path) -> dict[str, list[str]]:
+    return {s.image.stem: sorted(i.cls for i in s.instances) for s in load_dataset(data).samples if s.image}
+
+
+@pytest.mark.parametrize("fmt", ["yolov8", "coco"])
+def test_prelabels_check_clean_and_round_trip(fmt, frames, tmp_path):
+    out = tmp_path / "prelabels"
+    assert main(["predict", "--images", str(frames), "--out", str(out), "--format", fmt]) == 0
+    assert main(["check", str(out)]) == 0
+    found = classes_by_image(out)
+    assert found["99_empty"] == []
+    right = sum(found[f"{i:02d}_{code}"] == [code] for i, code in enumerate(CODES))
+    assert right >= 5, found
+    assert main(["convert", str(out), "--out", str(tmp_path / "converted")]) == 0
+    assert classes_by_image(tmp_path / "converted") == found
+
+
+def test_prelabel_refuses_an_output_inside_the_frames(frames, capsys):
+    assert main(["predict", "--images", str(frames), "--out", str(frames / "labels")]) == 2
+    assert "overlaps the input" in capsys.readouterr().err
+    assert not (frames / "labels").exists()
+
+
+def test_overlay_video_has_every_frame_at_the_input_size(frames, tmp_path):
+    video = tmp_path / "run.mp4"
+    assert main(["predict", "--video", str(frames), "--out", str(video)]) == 0
+    capture = cv2.VideoCapture(str(video))
+    count = 0
+    while True:
+        ok, frame = capture.read()
+        if not ok:
+            break
+        assert frame.shape == (480, 640, 3)
+        count += 1
+    assert count == len(list(frames.glob("*.jpg")))
+    assert cv2.imread(str(video.with_suffix(".png"))) is not None
+    again = tmp_path / "again.mp4"
+    assert main(["predict", "--video", str(video), "--out", str(again)]) == 0  # a video as the input
+    assert int(cv2.VideoCapture(str(again)).get(cv2.CAP_PROP_FRAME_COUNT)) == count
+
+
+def test_prelabel_and_video_on_real_frames(real_poles, tmp_path):
+    images = real_poles / "test" / "images"
+    assert main(["predict", "--images", str(images), "--out", str(tmp_path / "pre")]) == 0
+    assert main(["check", str(tmp_path / "pre")]) == 0
+    assert len(load_dataset(tmp_path / "pre").samples) == len(list(images.glob("*.jpg")))
+    assert main(["predict", "--video", str(images), "--out", str(tmp_path / "real.mp4")]) == 0
+    assert int(cv2.VideoCapture(str(tmp_path / "real.mp4")).get(cv2.CAP_PROP_FRAME_COUNT)) == 14
