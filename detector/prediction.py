@@ -9,7 +9,6 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -21,6 +20,7 @@ from detector.datasets.io import IMAGE_SUFFIXES, DatasetWriter, check_output_fol
 from detector.datasets.model import Instance
 from detector.datasets.polygons import mask_to_polygon
 from detector.preview import CLASS_BGR, contact_sheet
+from naoslam.atomic import atomic_folder
 from naoslam.detector import Detection, LandmarkDetector
 from naoslam.landmarks import CLASSES
 from naoslam.measurement import MeasurementModel
@@ -106,13 +106,10 @@ def _jpeg(frame: np.ndarray) -> bytes:
 
 def _write_coco(out: Path, labelled, source: dict[str, Path], force: bool, protect: Path) -> None:
     """Roboflow's COCO layout: ``train/`` holding the images and ``_annotations.coco.json`` (pixel polygons)."""
-    out = check_output_folder(out, force, (protect,))
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
-    try:
+    categories = [{"id": i, "name": code, "supercategory": "poles"} for i, code in enumerate(CLASSES)]
+    images, annotations = [], []
+    with atomic_folder(check_output_folder(out, force, (protect,))) as tmp:
         (tmp / "train").mkdir()
-        categories = [{"id": i, "name": code, "supercategory": "poles"} for i, code in enumerate(CLASSES)]
-        images, annotations = [], []
         for index, (name, frame, instances) in enumerate(labelled):
             target = tmp / "train" / name
             shutil.copyfile(source[name], target) if name in source else target.write_bytes(_jpeg(frame))
@@ -120,19 +117,13 @@ def _write_coco(out: Path, labelled, source: dict[str, Path], force: bool, prote
             images.append({"id": index, "file_name": name, "width": w, "height": h})
             for inst in instances:
                 pixels = inst.pixels(w, h)
-                x0, y0 = pixels.min(axis=0)
-                x1, y1 = pixels.max(axis=0)
+                (x0, y0), (x1, y1) = pixels.min(axis=0), pixels.max(axis=0)
                 annotations.append({"id": len(annotations), "image_id": index, "category_id": CLASSES.index(inst.cls),
                                     "segmentation": [np.round(pixels.reshape(-1), 2).tolist()], "iscrowd": 0,
                                     "bbox": [round(float(v), 2) for v in (x0, y0, x1 - x0, y1 - y0)],
                                     "area": round(float((x1 - x0) * (y1 - y0)), 2)})
         (tmp / "train" / "_annotations.coco.json").write_text(json.dumps(
             {"images": images, "annotations": annotations, "categories": categories}))
-        if out.exists():
-            shutil.rmtree(out)
-        os.replace(tmp, out)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def overlay_video(source: Path, out: Path, model: Path | None = None, conf: float | None = None,

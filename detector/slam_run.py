@@ -18,7 +18,6 @@ from naoslam.ekf_slam import SlamConfig
 from naoslam.logs import load_utias
 from naoslam.measurement import THESIS_CONF, Measurement, MeasurementModel, RangeCalibration
 from naoslam.observation import CHI2_2DOF_99
-from naoslam.shipped import OPERATING_CONF_KEY
 from naoslam.runner import Event, Sequence, SlamResult, merge_frames, run_slam, walk_sequence
 from naoslam.sim import SimConfig, simulate
 from naoslam.motion import OdometryModel
@@ -53,9 +52,8 @@ class FrontEnd:
             return self._colour_filter()
         from naoslam.detector import LandmarkDetector
 
-        detector = LandmarkDetector(None if self.model == "shipped" else self.model)
-        min_confidence = self.min_confidence if self.min_confidence is not None else \
-            float(detector.info.extra.get(OPERATING_CONF_KEY, THESIS_CONF))
+        detector = LandmarkDetector(self.model)
+        min_confidence = self.min_confidence if self.min_confidence is not None else detector.stored_conf or THESIS_CONF
         detector.conf = min(detector.conf, min_confidence)
         calibration = self.calibration or detector.calibration
         if calibration is None:

@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import argparse
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 from calibration.run import load_calibration
 from detector.training import SHIPPED_WEIGHTS
-from export.onnx_export import add_metadata, read_info, write_metadata
+from export.onnx_export import read_info, write_metadata
 from naoslam.atomic import atomic_path
 from naoslam.shipped import OPERATING_CONF_KEY, shipped_path
 
@@ -29,8 +30,9 @@ def ship(weights: Path, onnx_fp32: Path, onnx_int8: Path, calibration_json: Path
     for source, int8 in ((onnx_fp32, False), (onnx_int8, True)):
         target = shipped_path(int8)
         target.parent.mkdir(parents=True, exist_ok=True)
-        write_metadata(source, read_info(source), target)
-        paths.append(add_metadata(target, calibration=calibration, **{OPERATING_CONF_KEY: round(operating_conf, 3)}))
+        info = read_info(source)
+        extra = {**info.extra, "calibration": calibration, OPERATING_CONF_KEY: round(operating_conf, 3)}
+        paths.append(write_metadata(source, replace(info, extra=extra), target))
     total = sum(p.stat().st_size for p in paths)
     if total > SIZE_BUDGET:
         raise ValueError(f"the shipped files take {total / 2**20:.1f} MiB, over the {SIZE_BUDGET / 2**20:.0f} MiB budget")

@@ -18,7 +18,7 @@ import onnxruntime as ort
 from naoslam.landmarks import CLASSES
 from naoslam.measurement import RangeCalibration
 from naoslam.model_info import ModelInfo
-from naoslam.shipped import OPERATING_CONF_KEY, shipped_model
+from naoslam.shipped import OPERATING_CONF_KEY, resolve_model, shipped_model
 
 #: Ultralytics' letterbox fill value.
 PAD_VALUE = 114
@@ -145,15 +145,14 @@ class LandmarkDetector:
 
     def __init__(self, model: Path | str | None = None, conf: float | None = None, iou: float = 0.7,
                  max_det: int = 300, classes: tuple[str, ...] | None = CLASSES, threads: int | None = None):
-        self.path = Path(model) if model is not None else shipped_model()
+        self.path = resolve_model(model) if model is not None else shipped_model()
         self.session = load_session(self.path, threads)
         self.info = ModelInfo.from_metadata(self.session.get_modelmeta().custom_metadata_map, self.path)
         if classes is not None and tuple(self.info.classes) != tuple(classes):
             raise ValueError(f"{self.path}: the model's classes {list(self.info.classes)} are not the pole classes "
                              f"{list(classes)} - train on a dataset whose data.yaml names them in this order")
         self._check_signature()
-        self.operating_conf = float(self.info.extra.get(OPERATING_CONF_KEY, DEFAULT_CONF))
-        self.conf = self.operating_conf if conf is None else conf
+        self.conf = (self.stored_conf or DEFAULT_CONF) if conf is None else conf
         self.iou, self.max_det = iou, max_det
         self.input_name = self.session.get_inputs()[0].name
         self._letterboxes: dict[tuple[int, int], Letterbox] = {}
@@ -161,6 +160,12 @@ class LandmarkDetector:
     @property
     def classes(self) -> tuple[str, ...]:
         return self.info.classes
+
+    @property
+    def stored_conf(self) -> float | None:
+        """The confidence threshold the model was shipped to run at (``operating_conf`` in its metadata), if any."""
+        stored = self.info.extra.get(OPERATING_CONF_KEY)
+        return float(stored) if stored is not None else None
 
     @property
     def input_hw(self) -> tuple[int, int]:

@@ -20,6 +20,15 @@ def shipped_path(int8: bool = False) -> Path:
     return MODELS_DIR / (f"{SHIPPED_NAME}-int8.onnx" if int8 else f"{SHIPPED_NAME}.onnx")
 
 
+#: Names that stand for the shipped models wherever a model path is asked for.
+SHIPPED_NAMES = {"shipped": False, "shipped-int8": True}
+
+
+def resolve_model(name: str | Path) -> Path:
+    """``shipped`` / ``shipped-int8`` as the shipped model's path; any other name as a path."""
+    return shipped_model(SHIPPED_NAMES[str(name)]) if str(name) in SHIPPED_NAMES else Path(name)
+
+
 def shipped_model(int8: bool = False) -> Path:
     """Path of the shipped ONNX model (FP32, or the INT8 copy); an error that says how to get it if it is missing."""
     path = shipped_path(int8)

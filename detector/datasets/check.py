@@ -131,10 +131,12 @@ def write_fixed_copy(report: CheckReport, out: str | Path, force: bool = False) 
     Stems that collide across splits keep their first split only. The input is never written. A dataset that could
     not be read at all, or whose labels are boxes, is refused: a "cleaned" copy would hold images without poles.
     """
-    blocking = [p for p in report.errors if BOX_ONLY in p.message or not report.dataset.samples]
-    if blocking:
-        raise DatasetError(blocking[:1] + ([Problem("error", report.dataset.root, None, "--fix cannot repair this: "
-                                                    f"{len(blocking)} such problem(s)", "re-export the dataset")]))
+    if not report.dataset.samples:
+        raise DatasetError(report.errors)
+    boxes = [p for p in report.errors if BOX_ONLY in p.message]
+    if boxes:
+        raise DatasetError([boxes[0], Problem("error", report.dataset.root, None, f"--fix cannot turn {len(boxes)} "
+                                              "box label(s) into outlines", "re-export the dataset")])
     seen: set[str] = set()
     with DatasetWriter(out, force=force, protect=report.dataset.input_folders()) as writer:
         for sample in report.dataset.samples:

@@ -4,8 +4,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import cv2
 import numpy as np
+from PIL import Image
 
 from detector.datasets.io import IMAGE_SUFFIXES
 from detector.datasets.model import SPLITS, Dataset, Instance, Problem, Sample
@@ -97,13 +97,15 @@ def _categories(raw: list, json_path: Path, problems: list[Problem], renames: di
 
 
 def _image_size(image: dict, image_path: Path, json_path: Path, problems: list[Problem]) -> np.ndarray | None:
-    """The image's real size; an error when COCO declares another (polygons would be scaled wrongly)."""
-    real = cv2.imread(str(image_path), cv2.IMREAD_UNCHANGED)
-    if real is None:
+    """The image's real size, read from its header (``poles check`` decodes the pixels); an error when COCO declares
+    another (polygons would be scaled wrongly)."""
+    try:
+        with Image.open(image_path) as header:
+            width, height = header.size
+    except (OSError, ValueError):
         problems.append(Problem("error", image_path, None, "image cannot be decoded (corrupt or not an image)",
                                 "re-export or delete the image"))
         return None
-    height, width = real.shape[:2]
     declared = (image.get("width"), image.get("height"))
     if declared != (None, None) and declared != (width, height):
         problems.append(Problem("error", json_path, None, f"image {image['file_name']!r} is declared {declared[0]}x"

@@ -4,7 +4,6 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import tempfile
 from pathlib import Path
 from types import TracebackType
 
@@ -13,6 +12,7 @@ import yaml
 from detector.datasets.labels import format_label_line, parse_label_file
 from detector.datasets.model import SPLITS, Dataset, DatasetError, Instance, Problem, Sample
 from detector.datasets.names import class_codes
+from naoslam.atomic import atomic_folder
 from naoslam.landmarks import CLASSES
 
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".webp", ".tif", ".tiff"}
@@ -167,8 +167,8 @@ class DatasetWriter:
         self.counts = {split: 0 for split in SPLITS}
 
     def __enter__(self) -> "DatasetWriter":
-        self.out.parent.mkdir(parents=True, exist_ok=True)
-        self.tmp = Path(tempfile.mkdtemp(prefix=f".{self.out.name}.partial-", dir=self.out.parent))
+        self._folder = atomic_folder(self.out)
+        self.tmp = self._folder.__enter__()
         for split in SPLITS:
             (self.tmp / split / "images").mkdir(parents=True)
             (self.tmp / split / "labels").mkdir(parents=True)
@@ -206,17 +206,9 @@ class DatasetWriter:
         self.write_text(relative, json.dumps(data, indent=1))
 
     def __exit__(self, exc_type: type | None, exc: BaseException | None, tb: TracebackType | None) -> None:
-        if exc_type is not None:
-            shutil.rmtree(self.tmp, ignore_errors=True)
-            return
-        self.write_text("data.yaml", data_yaml_text())
-        if self.out.exists():
-            old = self.out.with_name(f".{self.out.name}.old-{os.getpid()}")
-            os.replace(self.out, old)
-            os.replace(self.tmp, self.out)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(self.tmp, self.out)
+        if exc_type is None:
+            self.write_text("data.yaml", data_yaml_text())
+        self._folder.__exit__(exc_type, exc, tb)
 
 
 def _link_or_copy(source: Path, target: Path) -> None:

@@ -153,7 +153,8 @@ def _train(ledger: StageLedger, name: str, key: str, data: Path, run: Path, mode
                              patience=max(budget.epochs // 4, 10), seed=seed, time_hours=budget.train_hours)
     _, weights = starting_point(model, None)
     train_model(data, run, settings, weights=weights, resume=resume)
-    return {**summarise_run(run), "model": model, "weights_from": str(weights or "scratch"), "imgsz": budget.imgsz, "curves": str(run / "training_curves.png"),
+    return {**summarise_run(run), "model": model, "weights_from": str(weights or "scratch"), "imgsz": budget.imgsz,
+            "curves": str(run / "training_curves.png"),
             "weights": str(run / "weights" / "best.pt")}
 
 

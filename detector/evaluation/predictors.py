@@ -9,7 +9,7 @@ import numpy as np
 from naoslam.colour_filter import ColourFilter
 from naoslam.detector import LandmarkDetector, mask_centre_column, rotated_box_of_mask
 from naoslam.measurement import RangeCalibration
-from naoslam.shipped import OPERATING_CONF_KEY, shipped_model
+from naoslam.shipped import resolve_model
 
 #: Lowest confidence kept, so that the precision/recall sweep and mAP see every detection.
 SWEEP_CONF = 0.01
@@ -47,8 +47,7 @@ class OnnxPredictor(Predictor):
         self.detector = LandmarkDetector(path, conf=SWEEP_CONF)
         self.name = Path(path).name
         self.calibration = self.detector.calibration
-        stored = self.detector.info.extra.get(OPERATING_CONF_KEY)
-        self.operating_conf = float(stored) if stored is not None else None
+        self.operating_conf = self.detector.stored_conf
 
     def __call__(self, frame: np.ndarray) -> Prediction:
         found = self.detector(frame)
@@ -96,11 +95,9 @@ class ColourFilterPredictor(Predictor):
 
 def make_predictor(model: str, imgsz: int = 640, calibration: RangeCalibration | None = None) -> Predictor:
     """``colour-filter``, ``shipped`` / ``shipped-int8`` (the models in naoslam), a ``.pt`` checkpoint or an ``.onnx``."""
-    if model in ("shipped", "shipped-int8"):
-        model = str(shipped_model(int8=model == "shipped-int8"))
     if model == "colour-filter":
         return ColourFilterPredictor(calibration)
-    path = Path(model)
+    path = resolve_model(model)
     if path.suffix == ".pt":
         if not path.is_file():
             raise FileNotFoundError(f"{path}: no such checkpoint")

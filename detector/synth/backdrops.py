@@ -15,8 +15,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-#: File types read as backdrops; anything else in the folder (a README, notes) is ignored.
-IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp")
+from detector.datasets.io import IMAGE_SUFFIXES
+
 #: Smallest backdrop accepted (a pole at range must still be resolvable).
 MIN_WIDTH, MIN_HEIGHT = 160, 120
 #: Backdrops narrower than this are upscaled to it: the detector runs on 640x480 frames.
@@ -46,13 +46,14 @@ class Look:
 
 
 def scan_backdrops(folder: Path) -> tuple[Path, ...]:
-    """Every usable image in ``folder`` and its subfolders (sorted), or a ``BackdropError`` naming the first bad file."""
+    """Every usable image in ``folder`` and its subfolders (sorted), or a ``BackdropError`` naming the first bad file.
+    Files of other types (a README, notes) are ignored."""
     folder = Path(folder)
     if not folder.is_dir():
         raise BackdropError(f"--backgrounds {folder}: no such folder - point it at frames recorded without poles")
     paths = tuple(sorted(p for p in folder.rglob("*") if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES))
     if not paths:
-        raise BackdropError(f"--backgrounds {folder}: no images ({', '.join(IMAGE_SUFFIXES)}) in it - "
+        raise BackdropError(f"--backgrounds {folder}: no images ({', '.join(sorted(IMAGE_SUFFIXES))}) in it - "
                             "add robot-camera frames without poles")
     for path in paths:
         image = cv2.imread(str(path), cv2.IMREAD_COLOR)
