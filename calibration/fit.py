@@ -9,7 +9,7 @@ import numpy as np
 from calibration.samples import SizeSample, as_arrays
 from naoslam.camera import NAO_HFOV_DEG
 from naoslam.landmarks import PoleGeometry
-from naoslam.measurement import PowerLaw, RangeCalibration, bearing_of_column
+from naoslam.measurement import PowerLaw, RangeCalibration, bearing_of_column, fuse_with_foot
 
 #: Distance bins (m) of the per-distance report.
 RANGE_BINS = (0.0, 0.75, 1.25, 2.0, 3.0, 4.0, 6.0)
@@ -75,6 +75,9 @@ def calibrate(samples: list[SizeSample], geometry: PoleGeometry = PoleGeometry()
     calibration = RangeCalibration(width_fit.law, height_fit.law, reference_width, upright_ratio,
                                    bearing_std_rad=bearing_std, hfov_deg=hfov_deg, colour_law=colour)
     report["errors_by_range"] = range_errors(samples, calibration)
+    cut = [s for s in samples if s.partial]
+    if cut:
+        report["errors_cut_by_border"] = method_errors(cut, calibration)
     return calibration, report
 
 
@@ -104,16 +107,40 @@ def _bearing_std(samples: list[SizeSample], hfov_deg: float, report: dict) -> fl
 
 
 def range_errors(samples: list[SizeSample], calibration: RangeCalibration) -> list[dict]:
-    """Mean absolute relative range error (%) per distance bin, for each way of choosing the range."""
+    """Mean absolute relative range error (%) per distance bin for each way of choosing the range (see
+    :func:`method_errors`)."""
     rows = []
     for low, high in zip(RANGE_BINS[:-1], RANGE_BINS[1:]):
         chosen = [s for s in samples if low <= s.range_m < high]
-        if not chosen:
-            continue
-        row = {"range_m": f"{low:.2f}-{high:.2f}", "samples": len(chosen)}
-        for method in ("width", "height", "rule", "fused"):
-            errors = [abs(calibration.range_from_box(s.width_px, s.height_px, s.image_width, method)[0] - s.range_m)
-                      / s.range_m for s in chosen]
-            row[method] = 100 * float(np.mean(errors))
-        rows.append(row)
+        if chosen:
+            rows.append({"range_m": f"{low:.2f}-{high:.2f}", **method_errors(chosen, calibration)})
     return rows
+
+
+def method_errors(chosen: list[SizeSample], calibration: RangeCalibration) -> dict:
+    """Mean absolute relative range error (%) of ``chosen`` for each way of choosing the range. ``foot``: over the
+    poles with a foot-row range (camera pose known, foot in the frame; their count in ``foot_samples``);
+    ``fused+foot``: over all, as ``MeasurementModel`` measures with a pose (the fused box range where there is no
+    foot or it disagrees)."""
+    row: dict = {"samples": len(chosen)}
+    for method in ("width", "height", "rule", "fused"):
+        errors = [abs(calibration.range_from_box(s.width_px, s.height_px, s.image_width, method)[0] - s.range_m)
+                  / s.range_m for s in chosen]
+        row[method] = 100 * float(np.mean(errors))
+    with_foot = [s for s in chosen if s.foot_range_m is not None]
+    row["foot_samples"] = len(with_foot)
+    if with_foot:
+        row["foot"] = 100 * float(np.mean([abs(s.foot_range_m - s.range_m) / s.range_m for s in with_foot]))
+        row["fused+foot"] = 100 * float(np.mean([abs(_with_foot(s, calibration) - s.range_m) / s.range_m
+                                                 for s in chosen]))
+    return row
+
+
+def _with_foot(sample: SizeSample, calibration: RangeCalibration) -> float:
+    """The range ``MeasurementModel`` gives with a camera pose: the fused box range and the foot-row range combined,
+    the box range alone where they disagree."""
+    box_range, box_std, _ = calibration.range_from_box(sample.width_px, sample.height_px, sample.image_width, "fused")
+    if sample.foot_range_m is None:
+        return box_range
+    fused = fuse_with_foot(box_range, box_std, sample.foot_range_m, sample.foot_range_std)
+    return box_range if fused is None else fused[0]

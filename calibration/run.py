@@ -94,12 +94,16 @@ def print_calibration(result: dict) -> None:
             laws.add_row(key if key != "colour" else "colour (px per cm)", f"{fit['a']:.4g}", f"{fit['b']:.4f}",
                          f"{fit['r2']:.4f}", f"{100 * fit['relative_std']:.1f} %",
                          f"{mean_fit['a']:.4g} * x^{mean_fit['b']:.4f}" if mean_fit else "-")
-    errors = Table(title="mean relative range error by true range")
-    for column in ("range (m)", "poles", "width", "height", "thesis rule", "fused"):
+    errors = Table(title="mean relative range error by true range (foot: poles with a camera pose and the foot "
+                         "in view)")
+    for column in ("range (m)", "poles", "width", "height", "thesis rule", "fused", "foot (poles)", "fused+foot"):
         errors.add_column(column, justify="right")
-    for row in report["errors_by_range"]:
+    cut = report.get("errors_cut_by_border")
+    for row in report["errors_by_range"] + ([dict(cut, range_m="cut by the border")] if cut else []):
         errors.add_row(row["range_m"], str(row["samples"]),
-                       *(f"{row[m]:.1f} %" for m in ("width", "height", "rule", "fused")))
+                       *(f"{row[m]:.1f} %" for m in ("width", "height", "rule", "fused")),
+                       f"{row['foot']:.1f} % ({row['foot_samples']})" if "foot" in row else "-",
+                       f"{row['fused+foot']:.1f} %" if "fused+foot" in row else "-")
     console = Console()
     console.print(laws)
     console.print(errors)

@@ -11,7 +11,9 @@ from tqdm import tqdm
 from detector.datasets.intake import open_dataset
 from detector.datasets.polygons import polygon_to_mask
 from detector.datasets.truth import load_truth
+from naoslam.camera import NAO_HFOV_DEG, CameraPose, PinholeCamera
 from naoslam.detector import LandmarkDetector, mask_centre_column, rotated_box_of_mask
+from naoslam.ground import GroundView
 
 
 @dataclass(frozen=True)
@@ -28,11 +30,14 @@ class SizeSample:
     partial: bool = False
     bearing_rad: float | None = None
     band_distance_px: float | None = None
+    foot_range_m: float | None = None
+    foot_range_std: float | None = None
 
 
 def collect_samples(data: Path, model: Path | None = None, truth_csv: Path | None = None,
-                    conf: float = 0.25, progress: bool = True) -> list[SizeSample]:
-    """Measure every pole with a true range: its labelled mask, or the model's best same-class detection."""
+                    conf: float = 0.25, progress: bool = True, hfov_deg: float = NAO_HFOV_DEG) -> list[SizeSample]:
+    """Measure every pole with a true range: its labelled mask, or the model's best same-class detection (and its
+    foot-row range where the image's camera pose is known)."""
     dataset = open_dataset(data, progress=progress)
     truth = load_truth(dataset, truth_csv)
     if not any(t and t.get("range_m") is not None for entries in truth.values() for t in entries):
@@ -50,24 +55,57 @@ def collect_samples(data: Path, model: Path | None = None, truth_csv: Path | Non
         for instance, entry in zip(sample.instances, entries):
             if not entry or entry.get("range_m") is None:
                 continue
+            label_mask = polygon_to_mask(instance.pixels(width, height), width, height)
             if detections is None:
-                mask = polygon_to_mask(instance.pixels(width, height), width, height)
+                mask, origin = label_mask, (0, 0)
                 box, column = rotated_box_of_mask(mask), mask_centre_column(mask) if mask.any() else None
             else:
-                same = [d for d in detections if d.name == instance.cls]
-                box, column = (same[0].rotated_box, same[0].centre_column) if same else (None, None)
+                found = _matching_detection(detections, instance.cls, label_mask)
+                if found is None:
+                    continue
+                box, column, mask, origin = found.rotated_box, found.centre_column, found.mask, found.mask_origin
             if box is None:
                 continue
+            foot = _foot(entry.get("camera"), mask, origin, width, height, hfov_deg)
             partial = entry.get("partial")
             if partial is None:  # a truth CSV does not say: a pole whose outline reaches the border is cut
                 partial = touches_border(instance.polygon)
             samples.append(SizeSample(sample.image.name, instance.cls, float(entry["range_m"]), box.width, box.height,
                                       column, width, bool(partial), entry.get("bearing_rad"),
-                                      entry.get("band_centre_distance_px")))
+                                      entry.get("band_centre_distance_px"), *foot))
     if not samples:
         raise ValueError(f"{data}: no pole with a true range could be measured"
                          + (f" - {model} found none of them" if model else ""))
     return samples
+
+
+#: Mask IoU a detection needs with a labelled pole to be taken as that pole's measurement.
+MATCH_IOU = 0.5
+
+
+def _matching_detection(detections, cls: str, label_mask: np.ndarray):
+    """The detection of class ``cls`` whose mask overlaps the labelled pole's most (IoU >= ``MATCH_IOU``), or None."""
+    best, best_iou = None, MATCH_IOU
+    for detection in detections:
+        if detection.name != cls:
+            continue
+        mask = detection.full_mask(label_mask.shape)
+        union = np.logical_or(mask, label_mask).sum()
+        iou = np.logical_and(mask, label_mask).sum() / union if union else 0.0
+        if iou >= best_iou:
+            best, best_iou = detection, iou
+    return best
+
+
+def _foot(camera: dict | None, mask: np.ndarray | None, origin: tuple[int, int], width: int, height: int,
+          hfov_deg: float) -> tuple[float | None, float | None]:
+    """Foot-row range and its standard deviation when the image's camera pose is known and the foot is in view."""
+    if not camera or mask is None:
+        return None, None
+    view = GroundView(PinholeCamera(width, height, hfov_deg),
+                      CameraPose(z=camera["height_m"], pitch=camera["pitch_rad"], roll=camera["roll_rad"]))
+    foot = view.foot(mask, origin)
+    return (foot.range_m, view.foot_range_std(foot)) if foot else (None, None)
 
 
 #: How close (normalised) an outline must come to the image border to count as cut by it.

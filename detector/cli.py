@@ -165,15 +165,36 @@ def build_parser() -> argparse.ArgumentParser:
     slam.add_argument("--calibration", type=Path, help="calibration.json (default: the one in the model)")
     slam.add_argument("--conf", type=float,
                       help="detections used from this confidence (default: the model's own threshold, else 0.85)")
+    slam.add_argument("--no-camera-pose", action="store_true",
+                      help="do not give the front end the camera's pose (rendered walk: the renderer's; recording: "
+                           "camera_height,camera_pitch,camera_roll columns of the odometry CSV), so no ground-plane "
+                           "gate and no foot-row range")
     slam.add_argument("--time-offset", type=float, default=0.3, help="frame time shift for recordings (thesis +0.3 s)")
-    slam.add_argument("--backend", choices=("ekf", "fej"), default="ekf")
-    slam.add_argument("--min-views", type=int, default=1, help="sightings before a landmark enters the map")
+    slam.add_argument("--backend", choices=("ekf", "fej", "oc"), default="oc",
+                      help="linearisation: standard EKF, FEJ-EKF or OC-EKF (default, observability-constrained)")
+    slam.add_argument("--association", choices=("nearest", "class"),
+                      help="nearest: by geometry, the class as evidence (default); class: the class is the "
+                           "landmark's identity (known correspondences; default for --utias, whose barcodes are)")
+    slam.add_argument("--no-self-calibration", action="store_true",
+                      help="do not estimate the odometry's stride and turn scales")
+    slam.add_argument("--min-views", type=int, default=3, help="agreeing sightings before a landmark enters the map")
     slam.add_argument("--outlier-filter", action="store_true", help="drop measurements 0.4 m / pi/3 off prediction")
-    slam.add_argument("--gate", type=float, nargs="?", const=9.21, help="Mahalanobis gate (chi-square, default 9.21)")
-    slam.add_argument("--duration", type=float, help="seconds of the walk or log (sim default 60)")
+    slam.add_argument("--gate", type=float, default=9.21,
+                      help="Mahalanobis gate on every update (chi-square, 2 dof; default 9.21 = 99 %%)")
+    slam.add_argument("--no-gate", action="store_true", help="accept every associated measurement (the thesis)")
+    slam.add_argument("--duration", type=float, help="seconds of the walk or log (sim default 90: once round and "
+                                                     "one more side)")
+    slam.add_argument("--false-positive-rate", type=float, default=0.05,
+                      help="sim: share of frames with a one-off false positive")
+    slam.add_argument("--confusion-rate", type=float, default=0.0, help="sim: share of sightings given another class")
+    slam.add_argument("--lookalikes", type=int, default=0,
+                      help="sim: look-alike poles of a wrong class standing in the walk's area")
+    slam.add_argument("--odometry-bias", type=float, default=1.25,
+                      help="sim: reported stride per true stride (default 1.25: the Nao over-reports)")
     slam.add_argument("--seed", type=int, default=0)
     slam.add_argument("--compare", type=int, metavar="SEEDS",
-                      help="also run every back end on SEEDS seeds and print the comparison table")
+                      help="also run every back end (and, on a simulated walk, the GTSAM smoother reference) on "
+                           "SEEDS seeds and print the comparison table")
     slam.add_argument("--out", type=Path, required=True)
 
     predict = sub.add_parser("predict", help="pre-label new frames for Roboflow, or draw a model's view on a video")
@@ -199,6 +220,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _slam(args: argparse.Namespace) -> int:
     from calibration.run import load_calibration
+    from detector.slam_reference import smooth
     from detector.slam_run import (BACKENDS, FrontEnd, compare_backends, print_comparison, recorded_sequence,
                                    sim_sequence, utias_sequence, write_outputs)
     from naoslam.atomic import write_json
@@ -211,7 +233,10 @@ def _slam(args: argparse.Namespace) -> int:
     front_end = FrontEnd(frontend, calibration, args.conf) if frontend else None
     if args.sim:
         def make(seed: int):
-            return sim_sequence(SimConfig(path=args.sim, duration_s=args.duration or 60.0, seed=seed), front_end)
+            sim = SimConfig(path=args.sim, duration_s=args.duration or 90.0, seed=seed,
+                            false_positive_rate=args.false_positive_rate, confusion_rate=args.confusion_rate,
+                            lookalikes=args.lookalikes, stride_scale=args.odometry_bias)
+            return sim_sequence(sim, front_end, camera_pose=not args.no_camera_pose)
     elif args.utias:
         def make(seed: int):
             return utias_sequence(args.utias, args.duration)
@@ -220,9 +245,13 @@ def _slam(args: argparse.Namespace) -> int:
             raise ValueError("--frames needs --odometry t,x,y,theta CSV and --frontend model.onnx")
 
         def make(seed: int):
-            return recorded_sequence(args.frames, args.odometry, front_end, args.time_offset)
-    config = SlamConfig(fej=args.backend == "fej", outlier_filter=args.outlier_filter, gate=args.gate,
-                        min_views=args.min_views)
+            return recorded_sequence(args.frames, args.odometry, front_end, args.time_offset,
+                                     camera_pose=not args.no_camera_pose)
+    association = args.association or ("class" if args.utias else "nearest")
+    config = SlamConfig(linearisation={"ekf": "standard"}.get(args.backend, args.backend),
+                        outlier_filter=args.outlier_filter, gate=None if args.no_gate else args.gate,
+                        min_views=args.min_views, association=association,
+                        self_calibrate=not args.no_self_calibration)
     sequence = make(args.seed)
     metrics = write_outputs(run_slam(sequence, config), sequence, args.out)
     summary = ", ".join(f"{key} mean {metrics[key]['mean']:.3f} m" for key in
@@ -230,7 +259,8 @@ def _slam(args: argparse.Namespace) -> int:
     print(f"{config.label} on {sequence.name}: {summary}; wrote {args.out}")
     if args.compare:
         seeds = list(range(args.seed, args.seed + (args.compare if args.sim else 1)))
-        rows = compare_backends(lambda s: sequence if s == args.seed else make(s), seeds, BACKENDS)
+        reference = smooth if args.sim and not front_end else None
+        rows = compare_backends(lambda s: sequence if s == args.seed else make(s), seeds, BACKENDS, reference)
         write_json(args.out / "comparison.json", rows)
         print_comparison(rows, f"back ends on {sequence.name} ({len(seeds)} seed(s))")
     return 0

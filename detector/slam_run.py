@@ -14,24 +14,29 @@ import cv2
 import numpy as np
 
 from naoslam.atomic import atomic_path, write_json
+from naoslam.camera import CameraPose
 from naoslam.ekf_slam import SlamConfig
 from naoslam.logs import load_utias
 from naoslam.measurement import THESIS_CONF, Measurement, MeasurementModel, RangeCalibration
+from naoslam.metrics import chi2_band
 from naoslam.observation import CHI2_2DOF_99
 from naoslam.runner import Event, Sequence, SlamResult, merge_frames, run_slam, walk_sequence
 from naoslam.sim import SimConfig, simulate
 from naoslam.motion import OdometryModel
 
-#: Back ends of the comparison table (thesis tables 4.1 and 4.3, plus the gate).
+#: Back ends of the comparison table: the thesis's (tables 4.1 and 4.3, raw odometry and known correspondences),
+#: then the robust default and its parts switched off one at a time.
 BACKENDS = {
-    "EKF": SlamConfig(),
-    "EKF + outlier filter": SlamConfig(outlier_filter=True),
-    "EKF + gate": SlamConfig(gate=CHI2_2DOF_99),
-    "EKF + min view 3": SlamConfig(min_views=3),
-    "EKF + min view 5": SlamConfig(min_views=5),
-    "FEJ-EKF": SlamConfig(fej=True),
-    "FEJ-EKF + min view 5": SlamConfig(fej=True, min_views=5),
-    "FEJ-EKF + gate + min view 3": SlamConfig(fej=True, gate=CHI2_2DOF_99, min_views=3),
+    "EKF (thesis)": SlamConfig.thesis(),
+    "EKF + outlier filter (thesis)": SlamConfig.thesis(outlier_filter=True),
+    "EKF + min view 3 (thesis)": SlamConfig.thesis(min_views=3),
+    "FEJ-EKF (thesis)": SlamConfig.thesis(linearisation="fej"),
+    "FEJ-EKF + gate + min view 3": SlamConfig.thesis(linearisation="fej", gate=CHI2_2DOF_99, min_views=3),
+    "OC-EKF (thesis settings)": SlamConfig.thesis(linearisation="oc"),
+    "robust default": SlamConfig(),
+    "robust, standard linearisation": SlamConfig(linearisation="standard"),
+    "robust, no odometry scales": SlamConfig(self_calibrate=False),
+    "robust, known correspondences": SlamConfig(association="class"),
 }
 
 
@@ -47,7 +52,8 @@ class FrontEnd:
     min_confidence: float | None = None
 
     def measurer(self):
-        """A function frame -> measurements."""
+        """A function (frame, camera_pose=None) -> measurements; with a pose, the ground-plane gate and the
+        foot-row range are used (model front ends only)."""
         if self.model == "colour-filter":
             return self._colour_filter()
         from naoslam.detector import LandmarkDetector
@@ -60,7 +66,11 @@ class FrontEnd:
             raise ValueError(f"{self.model}: no calibration in the model - run `poles calibrate --embed` "
                              "or pass --calibration")
         model = MeasurementModel(calibration, min_confidence)
-        return lambda frame: model.measure(detector(frame), frame.shape[1])
+
+        def measure(frame: np.ndarray, camera_pose: CameraPose | None = None) -> list[Measurement]:
+            return model.measure(detector(frame, camera_pose), frame.shape[1], camera_pose, frame.shape[0])
+
+        return measure
 
     def _colour_filter(self):
         from naoslam.colour_filter import ColourFilter
@@ -71,7 +81,7 @@ class FrontEnd:
             raise ValueError("the colour filter needs --calibration with a colour law (from `poles calibrate`)")
         colour_filter = ColourFilter()
 
-        def measure(frame: np.ndarray) -> list[Measurement]:
+        def measure(frame: np.ndarray, camera_pose: CameraPose | None = None) -> list[Measurement]:
             width, out = frame.shape[1], []
             for d in colour_filter(frame):
                 range_m, range_std = calibration.colour_range(d.band_distance_px, width)
@@ -82,58 +92,108 @@ class FrontEnd:
         return measure
 
 
-def sim_sequence(config: SimConfig, front_end: FrontEnd | None = None, progress: bool = True) -> Sequence:
-    """Measurement-level walk, or image-level when a front end is given (frames rendered along the walk)."""
+def sim_sequence(config: SimConfig, front_end: FrontEnd | None = None, progress: bool = True,
+                 camera_pose: bool = True) -> Sequence:
+    """Measurement-level walk, or image-level when a front end is given (frames rendered along the walk; with
+    ``camera_pose`` the front end is told each frame's camera pose)."""
     if front_end is None:
         return walk_sequence(simulate(config))
-    return image_sequences(config, [front_end], progress)[0]
+    return image_sequences(config, [front_end], progress, camera_pose)[0]
 
 
-def image_sequences(config: SimConfig, front_ends: list[FrontEnd], progress: bool = True) -> list[Sequence]:
+def image_sequences(config: SimConfig, front_ends: list[FrontEnd], progress: bool = True,
+                    camera_pose: bool = True) -> list[Sequence]:
     """One walk, its frames rendered once, seen through each front end in turn."""
-    from detector.synth.walk import render_walk
+    from detector.synth.walk import render_walk, walk_camera_poses
 
     walk = simulate(config)
     frames = render_walk(walk, seed=config.seed, progress=progress)
+    poses = walk_camera_poses(walk, config.seed) if camera_pose else [None] * len(frames)
     sequences = []
     for front_end in front_ends:
         measure = front_end.measurer()
-        sequence = walk_sequence(walk, [measure(frame) for frame in frames])
+        sequence = walk_sequence(walk, [measure(frame, pose) for frame, pose in zip(frames, poses)])
         sequence.name = f"sim {config.path}, images through {Path(front_end.model).name}"
         sequences.append(sequence)
     return sequences
 
 
-def recorded_sequence(frames_dir: Path, odometry_csv: Path, front_end: FrontEnd, time_offset_s: float) -> Sequence:
-    """Frames named by their time stamp (``12.533.jpg``) and an odometry CSV ``t,x,y,theta``, merged in time."""
-    rows = []
-    with Path(odometry_csv).open(newline="", encoding="utf-8-sig", errors="replace") as handle:
-        reader = csv.DictReader(handle)
-        if not reader.fieldnames or not {"t", "x", "y", "theta"} <= set(reader.fieldnames):
-            raise ValueError(f"{odometry_csv}:1: header must be t,x,y,theta (got {reader.fieldnames})")
-        for line, row in enumerate(reader, start=2):
-            try:
-                values = [float(row[k]) for k in ("t", "x", "y", "theta")]
-                if not all(math.isfinite(v) for v in values):
-                    raise ValueError
-                rows.append(values)
-            except (TypeError, ValueError):
-                raise ValueError(f"{odometry_csv}:{line}: not finite numbers in t,x,y,theta") from None
-    if len(rows) < 2:
-        raise ValueError(f"{odometry_csv}: needs at least two odometry rows")
-    rows.sort()
+#: How far a frame may lie outside the odometry's time span (the time offset can push the last frame past it).
+FRAME_SLACK_S = 1.0
+
+
+#: Optional odometry CSV columns with the camera's pose (m, rad; pitch down positive) from the joint angles.
+POSE_COLUMNS = ("camera_height", "camera_pitch", "camera_roll")
+
+
+def recorded_sequence(frames_dir: Path, odometry_csv: Path, front_end: FrontEnd, time_offset_s: float,
+                      camera_pose: bool = True) -> Sequence:
+    """Frames named by their time stamp (``12.533.jpg``) and an odometry CSV ``t,x,y,theta``, merged in time.
+
+    When the CSV also has ``camera_height,camera_pitch,camera_roll`` (and ``camera_pose``), each frame is measured
+    with the pose of the odometry row nearest in time: ground-plane gate and foot-row range.
+
+    Refused with the file and line: a missing header, values that are not finite numbers, time stamps that do not
+    increase, fewer than two rows, frames not named by a number or lying more than ``FRAME_SLACK_S`` outside the
+    odometry's time span.
+    """
+    rows, poses = _odometry_rows(Path(odometry_csv))
+    times = np.array([row[0] for row in rows])
     controls = [Event(b[0], OdometryModel.control(np.array(a[1:]), np.array(b[1:]))) for a, b in zip(rows, rows[1:])]
+    paths = sorted(Path(frames_dir).glob("*.jpg"))
+    if not paths:
+        raise ValueError(f"{frames_dir}: no <time>.jpg frames")
+    stamped = []
+    for path in paths:
+        try:
+            t = float(path.stem)
+        except ValueError:
+            raise ValueError(f"{path}: a frame must be named by its time stamp in seconds, e.g. 12.533.jpg") from None
+        if not rows[0][0] - FRAME_SLACK_S <= t + time_offset_s <= rows[-1][0] + FRAME_SLACK_S:
+            raise ValueError(f"{path}: time {t + time_offset_s:g} s (with --time-offset) lies outside the odometry's "
+                             f"{rows[0][0]:g}..{rows[-1][0]:g} s in {odometry_csv} - the frames and the odometry "
+                             "must come from one recording on one clock")
+        stamped.append((t, path))
     measure = front_end.measurer()
     frames = []
-    for path in sorted(Path(frames_dir).glob("*.jpg"), key=lambda p: float(p.stem)):
+    for t, path in sorted(stamped):
         image = cv2.imread(str(path))
         if image is None:
             raise ValueError(f"{path}: cannot be decoded as an image")
-        frames.append(Event(float(path.stem), measurements=measure(image)))
-    if not frames:
-        raise ValueError(f"{frames_dir}: no <time>.jpg frames")
+        pose = poses[int(np.argmin(np.abs(times - t - time_offset_s)))] if poses and camera_pose else None
+        frames.append(Event(t, measurements=measure(image, pose)))
     events = merge_frames(controls, frames, time_offset_s)
     return Sequence(events, np.array(rows[0][1:]), OdometryModel(), {}, f"recording {Path(frames_dir).name}")
+
+
+def _odometry_rows(odometry_csv: Path) -> tuple[list[list[float]], list[CameraPose] | None]:
+    """The rows of an odometry CSV ``t,x,y,theta`` (checked: finite numbers, strictly increasing times) and the
+    camera pose of each row when the pose columns are there."""
+    rows: list[list[float]] = []
+    poses: list[CameraPose] = []
+    with odometry_csv.open(newline="", encoding="utf-8-sig", errors="replace") as handle:
+        reader = csv.DictReader(handle)
+        if not reader.fieldnames or not {"t", "x", "y", "theta"} <= set(reader.fieldnames):
+            raise ValueError(f"{odometry_csv}:1: header must be t,x,y,theta (got {reader.fieldnames})")
+        columns = ["t", "x", "y", "theta"] + (list(POSE_COLUMNS) if set(POSE_COLUMNS) <= set(reader.fieldnames)
+                                               else [])
+        for line, row in enumerate(reader, start=2):
+            try:
+                values = [float(row[k]) for k in columns]
+                if not all(math.isfinite(v) for v in values):
+                    raise ValueError
+            except (TypeError, ValueError):
+                raise ValueError(f"{odometry_csv}:{line}: not finite numbers in {','.join(columns)}") from None
+            if len(values) > 4:
+                poses.append(CameraPose(z=values[4], pitch=values[5], roll=values[6]))
+                values = values[:4]
+            if rows and values[0] <= rows[-1][0]:
+                raise ValueError(f"{odometry_csv}:{line}: time {values[0]:g} does not come after the previous row's "
+                                 f"{rows[-1][0]:g} - sort the file by t and drop repeated rows")
+            rows.append(values)
+    if len(rows) < 2:
+        raise ValueError(f"{odometry_csv}: needs at least two odometry rows, found {len(rows)}")
+    return rows, poses or None
 
 
 def utias_sequence(folder: Path, duration_s: float | None = None) -> Sequence:
@@ -160,25 +220,41 @@ def write_outputs(result: SlamResult, sequence: Sequence, out: Path) -> dict:
     return metrics
 
 
-def compare_backends(make_sequence, seeds: list[int], backends: dict[str, SlamConfig] = BACKENDS) -> list[dict]:
-    """Every back end on the same sequences (one per seed); mean robot and landmark errors over seeds."""
-    sums: dict[str, list[dict]] = {name: [] for name in backends}
+def compare_backends(make_sequence, seeds: list[int], backends: dict[str, SlamConfig] = BACKENDS,
+                     reference=None) -> list[dict]:
+    """Every back end on the same sequences (one per seed): mean errors, missing and phantom landmarks, NEES
+    against its 95 % band over the seeds, NIS. ``reference(sequence) -> SlamResult`` adds a last row."""
+    runs: dict[str, list[dict]] = {name: [] for name in backends}
+    if reference is not None:
+        runs[REFERENCE_ROW] = []
     for seed in seeds:
         sequence = make_sequence(seed)
         for name, config in backends.items():
-            sums[name].append(run_slam(sequence, config).metrics())
-    rows = []
-    for name, runs in sums.items():
-        row = {"backend": name, "seeds": len(runs)}
-        for key in ("robot_error", "landmark_error", "odometry_error"):
-            values = [r[key]["mean"] for r in runs if key in r]
-            if values:
-                row[key] = float(np.mean(values))
-        nees = [r["nees"]["mean"] for r in runs if "nees" in r]
-        if nees:
-            row["nees"] = float(np.median(nees))
-        rows.append(row)
-    return rows
+            runs[name].append(run_slam(sequence, config).metrics())
+        if reference is not None:
+            runs[REFERENCE_ROW].append(reference(sequence).metrics())
+    return [_summary(name, metrics) for name, metrics in runs.items()]
+
+
+REFERENCE_ROW = "GTSAM smoother, oracle association (reference)"
+
+
+def _summary(name: str, runs: list[dict]) -> dict:
+    row: dict = {"backend": name, "seeds": len(runs)}
+    for key in ("robot_error", "landmark_error", "odometry_error"):
+        values = [r[key]["mean"] for r in runs if key in r]
+        if values:
+            row[key] = float(np.mean(values))
+    row["missing"] = sum(len(r.get("landmarks_missing", [])) for r in runs)
+    row["phantoms"] = sum(len(r.get("phantoms", {})) for r in runs)
+    nees = [r["nees"]["mean"] for r in runs if "nees" in r]
+    if nees:
+        row["nees"] = float(np.median(nees))
+        row["nees_band95"] = chi2_band(3, len(nees))
+    nis = [r["nis"]["mean"] for r in runs if "nis" in r]
+    if nis:
+        row["nis"] = float(np.median(nis))
+    return row
 
 
 def print_comparison(rows: list[dict], title: str) -> None:
@@ -186,12 +262,17 @@ def print_comparison(rows: list[dict], title: str) -> None:
     from rich.table import Table
 
     table = Table(title=title)
-    for column in ("back end", "landmark mean (m)", "robot mean (m)", "odometry alone (m)", "NEES (median, 3 dof)"):
+    for column in ("back end", "landmark mean (m)", "robot mean (m)", "odometry alone (m)", "missing", "phantoms",
+                   "NEES median (3 dof)", "NEES 95 % band", "NIS median (2 dof)"):
         table.add_column(column, justify="right")
     for row in rows:
-        table.add_row(row["backend"], *(f"{row[k]:.4f}" if k in row else "-"
+        band = row.get("nees_band95")
+        table.add_row(row["backend"], *(f"{row[k]:.3f}" if k in row else "-"
                                         for k in ("landmark_error", "robot_error", "odometry_error")),
-                      f"{row['nees']:.1f}" if "nees" in row else "-")
+                      str(row["missing"]), str(row["phantoms"]),
+                      f"{row['nees']:.1f}" if "nees" in row else "-",
+                      f"{band[0]:.2f}-{band[1]:.2f}" if band else "-",
+                      f"{row['nis']:.2f}" if "nis" in row else "-")
     Console().print(table)
 
 

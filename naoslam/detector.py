@@ -15,6 +15,8 @@ import cv2
 import numpy as np
 import onnxruntime as ort
 
+from naoslam.camera import NAO_HFOV_DEG, CameraPose, PinholeCamera
+from naoslam.ground import GroundView
 from naoslam.landmarks import CLASSES
 from naoslam.measurement import RangeCalibration
 from naoslam.model_info import ModelInfo
@@ -156,6 +158,11 @@ class LandmarkDetector:
         self.iou, self.max_det = iou, max_det
         self.input_name = self.session.get_inputs()[0].name
         self._letterboxes: dict[tuple[int, int], Letterbox] = {}
+        self.gate_rejections: list[tuple[Detection, str]] = []
+        self.gate_rejected = 0
+        calibration = self.calibration
+        #: The camera's horizontal field of view for the ground-plane gate: the calibration's, else the Nao's.
+        self.hfov_deg = calibration.hfov_deg if calibration is not None else NAO_HFOV_DEG
 
     @property
     def classes(self) -> tuple[str, ...]:
@@ -210,10 +217,28 @@ class LandmarkDetector:
         """The bare network call: raw (1, 4+nc+32, N) predictions and (1, 32, h, w) prototypes."""
         return self.session.run(None, {self.input_name: blob})
 
-    def __call__(self, frame: np.ndarray) -> list[Detection]:
-        """Detections in one BGR frame, best first."""
+    def __call__(self, frame: np.ndarray, camera_pose: CameraPose | None = None) -> list[Detection]:
+        """Detections in one BGR frame, best first.
+
+        With the camera's ``camera_pose`` (height, pitch, roll; x, y and yaw unused) the ground-plane gate drops
+        detections that cannot be a pole standing on the floor; ``gate_rejections`` then holds (detection, reason)
+        for this frame and ``gate_rejected`` counts them over all frames.
+        """
         blob, box = self.prepare(frame)
-        return self.decode(self.forward(blob), box)
+        detections = self.decode(self.forward(blob), box)
+        self.gate_rejections = []
+        if camera_pose is None:
+            return detections
+        view = GroundView(PinholeCamera(frame.shape[1], frame.shape[0], self.hfov_deg), camera_pose)
+        kept = []
+        for detection in detections:
+            reason = view.check(detection.mask, detection.mask_origin)
+            if reason is None:
+                kept.append(detection)
+            else:
+                self.gate_rejections.append((detection, reason))
+        self.gate_rejected += len(self.gate_rejections)
+        return kept
 
     def decode(self, outputs: list[np.ndarray], box: Letterbox) -> list[Detection]:
         """Confidence filter, class-aware NMS and masks, as Ultralytics' ``non_max_suppression`` + native masks."""

@@ -1,48 +1,82 @@
-"""EKF SLAM with known correspondences (the landmark class is its signature), and its variants.
+"""EKF SLAM over a robot block and a growing map of point landmarks, with the variants the thesis compared.
 
-State: pose (x, y, theta) followed by (x, y) of each landmark in the order they entered the map. Updates touch
-only the pose and the observed landmark's blocks through index slices: O(n) for the gain and O(n^2) for the
-covariance product. Variants, combinable (2024 thesis, 3.2):
+State: the robot block - pose (x, y, theta), then, with odometry self-calibration, the stride scale and turn scale
+that turn reported odometry into true motion - followed by (x, y) of each landmark in the order they entered the
+map. Updates touch only the robot block and the observed landmark through index slices: O(n) for the gain and
+O(n^2) for the covariance (Joseph form).
+
+Defaults are the robust configuration: self-calibrated odometry, class-tolerant nearest-neighbour association
+inside a Mahalanobis gate, and landmarks initialised only from three agreeing sightings. The thesis's variants
+(2024 thesis, 3.2) stay available for the comparison tables through :meth:`SlamConfig.thesis`:
 - outlier filter: drop a measurement whose range differs more than 0.4 m or bearing more than pi/3 from prediction;
-- validation gate (beyond the thesis): drop it when its squared Mahalanobis distance exceeds a chi-square bound;
 - minimal view: a landmark enters the map only after ``min_views`` sightings that agree in position;
-- FEJ-EKF (Huang, Mourikis and Roumeliotis): the motion Jacobian uses the displacement from the previous
-  *predicted* pose, and the landmark part of H (and its pose part) the landmark's first estimate.
+- FEJ-EKF (Huang, Mourikis and Roumeliotis 2009): the motion Jacobian uses the displacement between *predicted*
+  poses, and the measurement Jacobian the landmark's first estimate;
+- OC-EKF (Huang, Mourikis and Roumeliotis 2010): the motion Jacobian as FEJ, and the measurement Jacobian
+  projected so that it cannot see a global translation or rotation (the directions SLAM cannot observe).
 """
 from __future__ import annotations
 
 import math
+from collections import Counter
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from naoslam import observation
+from naoslam.association import CandidatePool, Hypothesis, choose
 from naoslam.measurement import Measurement
 from naoslam.motion import OdometryModel, VelocityModel, wrap
 
 OUTLIER_RANGE_M = 0.4
 OUTLIER_BEARING_RAD = math.pi / 3
+ASSOCIATIONS = ("nearest", "class")
+LINEARISATIONS = ("standard", "fej", "oc")
 
 
 @dataclass(frozen=True)
 class SlamConfig:
-    """Which variant to run. ``gate``: chi-square bound (2 dof) or None; ``min_views``: 1 = classic."""
+    """Which back end to run; the defaults are the robust one.
 
-    fej: bool = False
+    ``linearisation``: standard, fej or oc. ``gate``: chi-square bound (2 dof) on every update, or None.
+    ``association``: ``nearest`` (geometry, class as evidence) or ``class`` (the class is the landmark's identity:
+    known correspondences, the thesis's mode). ``min_views``: agreeing sightings before a landmark enters the map.
+    ``self_calibrate``: estimate stride and turn scale with priors (mean 1, standard deviations below).
+    """
+
+    linearisation: str = "oc"
     outlier_filter: bool = False
-    gate: float | None = None
-    min_views: int = 1
-    min_view_radius_m: float = 0.5
+    gate: float | None = observation.CHI2_2DOF_99
+    min_views: int = 3
+    association: str = "nearest"
+    self_calibrate: bool = True
+    stride_scale_std: float = 0.3
+    turn_scale_std: float = 0.1
 
     def __post_init__(self) -> None:
         if self.min_views < 1:
             raise ValueError(f"--min-views {self.min_views} must be at least 1")
         if self.gate is not None and self.gate <= 0:
             raise ValueError(f"--gate {self.gate} must be a positive chi-square bound (e.g. 9.21)")
+        if self.linearisation not in LINEARISATIONS:
+            raise ValueError(f"linearisation {self.linearisation!r} is not one of {', '.join(LINEARISATIONS)}")
+        if self.association not in ASSOCIATIONS:
+            raise ValueError(f"association {self.association!r} is not one of {', '.join(ASSOCIATIONS)}")
+
+    @classmethod
+    def thesis(cls, **variant) -> "SlamConfig":
+        """The thesis's classic EKF (known correspondences, no gate, immediate initialisation, raw odometry) with
+        ``variant`` switched on."""
+        return cls(**{"linearisation": "standard", "gate": None, "min_views": 1, "association": "class",
+                      "self_calibrate": False, **variant})
 
     @property
     def label(self) -> str:
-        parts = ["FEJ-EKF" if self.fej else "EKF"]
+        parts = [{"standard": "EKF", "fej": "FEJ-EKF", "oc": "OC-EKF"}[self.linearisation]]
+        if self.self_calibrate:
+            parts.append("odometry scales")
+        if self.association == "nearest":
+            parts.append("NN association")
         if self.outlier_filter:
             parts.append("outlier filter")
         if self.gate:
@@ -54,26 +88,36 @@ class SlamConfig:
 
 @dataclass
 class UpdateLog:
-    """What happened to each measurement of one update."""
+    """What happened to each measurement of one update (by detected class), and the accepted updates' NIS."""
 
     accepted: list[str] = field(default_factory=list)
+    confused: list[str] = field(default_factory=list)
     initialised: list[str] = field(default_factory=list)
     pending: list[str] = field(default_factory=list)
     rejected: list[str] = field(default_factory=list)
+    nis: list[float] = field(default_factory=list)
 
 
 class EkfSlam:
-    """EKF SLAM over a pose and a growing map of signed point landmarks."""
+    """EKF SLAM over a pose (plus odometry scales) and a growing map of point landmarks."""
 
     def __init__(self, pose: np.ndarray, pose_cov: np.ndarray, motion: OdometryModel | VelocityModel,
                  config: SlamConfig = SlamConfig()):
-        self.mu = np.asarray(pose, dtype=float).copy()
-        self.sigma = np.asarray(pose_cov, dtype=float).copy()
-        self.motion = motion
         self.config = config
+        self.motion = motion
+        self.robot_size = 5 if config.self_calibrate else 3
+        self.mu = np.zeros(self.robot_size)
+        self.mu[:3] = pose
+        self.sigma = np.zeros((self.robot_size, self.robot_size))
+        self.sigma[:3, :3] = pose_cov
+        if config.self_calibrate:
+            self.mu[3:5] = 1.0
+            self.sigma[3, 3], self.sigma[4, 4] = config.stride_scale_std ** 2, config.turn_scale_std ** 2
         self.slots: dict[str, int] = {}
+        self.votes: dict[str, Counter] = {}
         self.first_estimates: dict[str, np.ndarray] = {}
-        self.sightings: dict[str, list[np.ndarray]] = {}
+        self.pools: dict[str, CandidatePool] = {}
+        self.frame = 0
         self._previous_predicted = self.mu[:3].copy()
 
     @property
@@ -81,55 +125,101 @@ class EkfSlam:
         return self.mu[:3]
 
     @property
+    def odometry_scales(self) -> tuple[float, float]:
+        """Estimated (stride scale, turn scale): true motion per reported motion (1, 1 without self-calibration)."""
+        return (float(self.mu[3]), float(self.mu[4])) if self.config.self_calibrate else (1.0, 1.0)
+
+    def label_of(self, landmark: str) -> str:
+        """The class most often detected on a landmark."""
+        return self.votes[landmark].most_common(1)[0][0]
+
+    @property
     def landmarks(self) -> dict[str, np.ndarray]:
-        """Estimated landmark positions by signature."""
-        return {sig: self.mu[i:i + 2].copy() for sig, i in self.slots.items()}
+        """Estimated landmark positions by name: the majority class, ``#2``, ``#3`` for later ones of that class."""
+        out: dict[str, np.ndarray] = {}
+        for landmark, i in self.slots.items():
+            label = name = self.label_of(landmark)
+            n = 1
+            while name in out:
+                n += 1
+                name = f"{label}#{n}"
+            out[name] = self.mu[i:i + 2].copy()
+        return out
 
     def predict(self, u: np.ndarray) -> None:
-        """Move the pose with control ``u``; the pose-landmark cross covariances follow through G."""
+        """Move the pose with reported control ``u`` (scaled by the estimated odometry scales)."""
+        r = self.robot_size
         pose = self.mu[:3].copy()
-        g, v = self.motion.jacobians(pose, u)
-        self.mu[:3] = self.motion.move(pose, u)
-        if self.config.fej:
+        stride, turn = self.odometry_scales
+        true_u = self.motion.scaled(u, stride, turn)
+        g, v = self.motion.jacobians(pose, true_u)
+        self.mu[:3] = self.motion.move(pose, true_u)
+        if self.config.linearisation != "standard":
             # Huang et al.: linearise at the previous *predicted* pose, not the updated one.
-            dx, dy = self.mu[:3][:2] - self._previous_predicted[:2]
+            dx, dy = self.mu[:2] - self._previous_predicted[:2]
             g = np.array([[1.0, 0.0, -dy], [0.0, 1.0, dx], [0.0, 0.0, 1.0]])
         self._previous_predicted = self.mu[:3].copy()
+        f = np.eye(r)
+        f[:3, :3] = g
+        if self.config.self_calibrate:
+            d_stride, d_turn = self.motion.scale_directions(u)
+            f[:3, 3], f[:3, 4] = v @ d_stride, v @ d_turn
         sigma = self.sigma
-        sigma[:3, :3] = g @ sigma[:3, :3] @ g.T + v @ self.motion.control_noise(u) @ v.T
-        sigma[:3, 3:] = g @ sigma[:3, 3:]
-        sigma[3:, :3] = sigma[:3, 3:].T
+        sigma[:r, :r] = f @ sigma[:r, :r] @ f.T
+        sigma[:3, :3] += v @ self.motion.control_noise(true_u) @ v.T
+        sigma[:r, r:] = f @ sigma[:r, r:]
+        sigma[r:, :r] = sigma[:r, r:].T
 
     def update(self, measurements: list[Measurement]) -> UpdateLog:
-        """Fold in one frame's measurements, one landmark at a time."""
+        """Fold in one frame's measurements, one at a time; no landmark takes two detections of one frame."""
+        self.frame += 1
         log = UpdateLog()
+        used: set[str] = set()
         for m in measurements:
             z = np.array([m.range_m, m.bearing_rad])
             q = observation.noise(m.range_std, m.bearing_std)
-            if m.signature in self.slots:
-                (log.accepted if self._correct(m.signature, z, q) else log.rejected).append(m.signature)
-            elif self._seen_enough(m.signature, z):
-                self._add_landmark(m.signature, z, q)
-                log.initialised.append(m.signature)
+            landmark, verdict = self._associate(m.signature, z, q, used)
+            if landmark is not None:
+                nis = self._correct(landmark, z, q)
+                if nis is None:
+                    log.rejected.append(m.signature)
+                    continue
+                used.add(landmark)
+                self.votes[landmark][m.signature] += 1
+                (log.confused if verdict == "confused" else log.accepted).append(m.signature)
+                log.nis.append(nis)
+            elif verdict == "ambiguous":
+                log.rejected.append(m.signature)
             else:
-                log.pending.append(m.signature)
+                label = self._seen_enough(m.signature, z, q)
+                if label is None:
+                    log.pending.append(m.signature)
+                else:
+                    used.add(self._add_landmark(label, z, q))
+                    log.initialised.append(m.signature)
         return log
 
-    def _seen_enough(self, signature: str, z: np.ndarray) -> bool:
-        """Minimal view: true on the n-th sighting in agreeing places (a far-off sighting restarts the count)."""
-        if self.config.min_views <= 1:
-            return True
-        position = observation.landmark_from(self.pose, z)[0]
-        seen = self.sightings.setdefault(signature, [])
-        if seen and np.linalg.norm(position - np.mean(seen, axis=0)) > self.config.min_view_radius_m:
-            seen.clear()
-        seen.append(position)
-        if len(seen) >= self.config.min_views:
-            del self.sightings[signature]
-            return True
-        return False
+    def _associate(self, detected: str, z: np.ndarray, q: np.ndarray, used: set[str]) -> tuple[str | None, str]:
+        if self.config.association == "class":
+            return (detected, "match") if detected in self.slots and detected not in used else (None, "new")
+        gate = self.config.gate or observation.CHI2_2DOF_99
+        hypotheses = []
+        for landmark in self.slots:
+            if landmark not in used:
+                nu, s, _, _ = self._linearise(landmark, z, q)
+                hypotheses.append(Hypothesis(landmark, self.label_of(landmark), float(nu @ np.linalg.solve(s, nu))))
+        return choose(hypotheses, detected, gate)
 
-    def _add_landmark(self, signature: str, z: np.ndarray, q: np.ndarray) -> None:
+    def _seen_enough(self, detected: str, z: np.ndarray, q: np.ndarray) -> str | None:
+        """Delayed initialisation: the class to map when this sighting completes a candidate, else None."""
+        if self.config.min_views == 1:
+            return detected
+        position, _, j_z = observation.landmark_from(self.pose, z)
+        key = detected if self.config.association == "class" else ""
+        pool = self.pools.setdefault(key, CandidatePool(self.config.min_views))
+        return pool.sighting(position, j_z @ q @ j_z.T, detected, self.frame)
+
+    def _add_landmark(self, label: str, z: np.ndarray, q: np.ndarray) -> str:
         position, j_pose, j_z = observation.landmark_from(self.pose, z)
         n = len(self.mu)
         cross = j_pose @ self.sigma[:3, :]
@@ -140,33 +230,60 @@ class EkfSlam:
         sigma[n:, n:] = j_pose @ self.sigma[:3, :3] @ j_pose.T + j_z @ q @ j_z.T
         self.sigma = sigma
         self.mu = np.concatenate([self.mu, position])
-        self.slots[signature] = n
-        self.first_estimates[signature] = position.copy()
+        landmark = label if self.config.association == "class" else f"L{len(self.slots)}"
+        self.slots[landmark] = n
+        self.votes[landmark] = Counter({label: 1})
+        self.first_estimates[landmark] = position.copy()
+        return landmark
 
-    def _correct(self, signature: str, z: np.ndarray, q: np.ndarray) -> bool:
-        j = self.slots[signature]
-        landmark = self.mu[j:j + 2]
-        nu = observation.innovation(z, observation.expected(self.pose, landmark))
-        at = self.first_estimates[signature] if self.config.fej else landmark
-        h_pose, h_landmark = observation.jacobians(self.pose, at)
+    def _linearise(self, landmark: str, z: np.ndarray, q: np.ndarray):
+        """Innovation, its covariance S, the Jacobian H over (pose, landmark) and those state indices."""
+        j = self.slots[landmark]
+        estimate = self.mu[j:j + 2]
+        nu = observation.innovation(z, observation.expected(self.pose, estimate))
+        at = self.first_estimates[landmark] if self.config.linearisation == "fej" else estimate
+        h = np.hstack(observation.jacobians(self.pose, at))
+        if self.config.linearisation == "oc":
+            h = _observable_part(h, self._previous_predicted, self.first_estimates[landmark])
         idx = np.r_[0:3, j:j + 2]
-        h = np.hstack([h_pose, h_landmark])
-        sigma_cols = self.sigma[:, idx]
-        s = h @ sigma_cols[idx] @ h.T + q
+        s = h @ self.sigma[np.ix_(idx, idx)] @ h.T + q
+        return nu, s, h, idx
+
+    def _correct(self, landmark: str, z: np.ndarray, q: np.ndarray) -> float | None:
+        """Joseph-form update; the NIS when accepted, None when the outlier filter or the gate rejects it."""
+        nu, s, h, idx = self._linearise(landmark, z, q)
         if self.config.outlier_filter and (abs(nu[0]) > OUTLIER_RANGE_M or abs(nu[1]) > OUTLIER_BEARING_RAD):
-            return False
-        s_inv = np.linalg.inv(s)
-        if self.config.gate is not None and float(nu @ s_inv @ nu) > self.config.gate:
-            return False
-        k = sigma_cols @ h.T @ s_inv
+            return None
+        nis = float(nu @ np.linalg.solve(s, nu))
+        if self.config.gate is not None and nis > self.config.gate:
+            return None
+        p = self.sigma[:, idx] @ h.T  # Sigma H^T, n x 2
+        k = np.linalg.solve(s, p.T).T
         self.mu += k @ nu
         self.mu[2] = wrap(self.mu[2])
-        self.sigma -= k @ s @ k.T
+        # Joseph form (I - KH) Sigma (I - KH)^T + K Q K^T, expanded so that only Sigma H^T is needed: stays
+        # symmetric positive semi-definite under rounding, unlike Sigma - K S K^T.
+        kp = k @ p.T
+        self.sigma += k @ s @ k.T - kp - kp.T
         self.sigma = 0.5 * (self.sigma + self.sigma.T)
-        return True
+        return nis
 
     def pose_nees(self, true_pose: np.ndarray) -> float:
         """Normalised estimation error squared of the pose (3 degrees of freedom)."""
         error = self.pose - true_pose
         error[2] = wrap(error[2])
         return float(error @ np.linalg.solve(self.sigma[:3, :3], error))
+
+
+def _observable_part(h: np.ndarray, pose: np.ndarray, landmark: np.ndarray) -> np.ndarray:
+    """OC-EKF: the measurement Jacobian over (pose, landmark) nearest to ``h`` (Frobenius norm) that is blind to
+    the unobservable directions - a common translation in x and y, and a rotation about the origin.
+
+    The directions are the ones the motion Jacobians have carried forward: the rotation's robot part at the
+    *predicted* position, its landmark part at the landmark's first estimate (Huang, Mourikis and Roumeliotis
+    2010). At the current estimates the projection would change nothing: the standard Jacobian is already blind
+    to the rotation about its own linearisation point; it is the mismatch over time that gains false information.
+    """
+    u = np.array([[1.0, 0.0, -pose[1]], [0.0, 1.0, pose[0]], [0.0, 0.0, 1.0],
+                  [1.0, 0.0, -landmark[1]], [0.0, 1.0, landmark[0]]])
+    return h - h @ u @ np.linalg.solve(u.T @ u, u.T)

@@ -13,7 +13,8 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from naoslam.camera import PinholeCamera
+from naoslam.camera import CameraPose, PinholeCamera
+from naoslam.ground import GroundView
 from naoslam.landmarks import PoleGeometry
 
 #: Range choices: the thesis's rule, only one law, or inverse-variance fusion of both.
@@ -106,24 +107,52 @@ def bearing_of_column(column: float, image_width: int, hfov_deg: float, linear: 
     return float(camera.linear_bearing_of_column(column) if linear else camera.bearing_of_column(column))
 
 
+#: Standard deviations by which the foot-row and box ranges may differ before the foot is distrusted.
+FOOT_AGREEMENT_SIGMAS = 3.0
+
+
+def fuse_with_foot(box_range: float, box_std: float, foot_range: float,
+                   foot_std: float) -> tuple[float, float] | None:
+    """The box and foot-row ranges combined by inverse variance, or None when they disagree by more than
+    ``FOOT_AGREEMENT_SIGMAS``: then the mask's lowest row is not the foot (hidden behind a robot or a ball) and
+    only the box range should be used."""
+    if abs(box_range - foot_range) > FOOT_AGREEMENT_SIGMAS * math.hypot(box_std, foot_std):
+        return None
+    weights = np.array([1 / box_std ** 2, 1 / foot_std ** 2])
+    return float(weights @ [box_range, foot_range] / weights.sum()), 1 / math.sqrt(weights.sum())
+
+
 #: The thesis's confidence threshold for detections used in SLAM (YOLOv8s).
 THESIS_CONF = 0.85
 
 
 class MeasurementModel:
-    """Turns front-end detections into measurements with a calibration (confidence threshold as the thesis: 0.85)."""
+    """Turns front-end detections into measurements with a calibration (confidence threshold as the thesis: 0.85).
+
+    With the camera's pose, a pole whose foot is in the frame also gets the foot-row range (:mod:`naoslam.ground`),
+    fused with the power-law range by inverse variance, and the foot's bearing (exact under camera roll).
+    ``pitch_std_rad`` is how well the pose's pitch is known; it sets the foot-row range's uncertainty.
+    """
 
     def __init__(self, calibration: RangeCalibration, min_confidence: float = THESIS_CONF, range_method: str = "fused",
-                 linear_bearing: bool = False):
+                 linear_bearing: bool = False, pitch_std_rad: float = math.radians(0.5)):
         if range_method not in RANGE_METHODS:
             raise ValueError(f"range method {range_method!r} is not one of {', '.join(RANGE_METHODS)}")
         self.calibration = calibration
         self.min_confidence = min_confidence
         self.range_method = range_method
         self.linear_bearing = linear_bearing
+        self.pitch_std_rad = pitch_std_rad
 
-    def measure(self, detections, image_width: int) -> list[Measurement]:
-        """Measurements for detections (``naoslam.detector.Detection``) above the confidence threshold."""
+    def measure(self, detections, image_width: int, camera_pose: CameraPose | None = None,
+                image_height: int | None = None) -> list[Measurement]:
+        """Measurements for detections (``naoslam.detector.Detection``) above the confidence threshold; a
+        ``camera_pose`` needs the ``image_height`` too."""
+        view = None
+        if camera_pose is not None:
+            if image_height is None:
+                raise ValueError("a camera pose needs the image height to place the principal point")
+            view = GroundView(PinholeCamera(image_width, image_height, self.calibration.hfov_deg), camera_pose)
         out = []
         for d in detections:
             if d.confidence < self.min_confidence or d.rotated_box is None:
@@ -131,6 +160,13 @@ class MeasurementModel:
             range_m, range_std, used = self.calibration.range_from_box(d.rotated_box.width, d.rotated_box.height,
                                                                        image_width, self.range_method)
             bearing = bearing_of_column(d.centre_column, image_width, self.calibration.hfov_deg, self.linear_bearing)
+            foot = view.foot(d.mask, d.mask_origin) if view is not None else None
+            if foot is not None:
+                foot_std = view.foot_range_std(foot, pitch_std_rad=self.pitch_std_rad)
+                fused = fuse_with_foot(range_m, range_std, foot.range_m, foot_std)
+                if fused is not None:
+                    (range_m, range_std), used, bearing = fused, f"{used}+foot", foot.bearing_rad
             out.append(Measurement(range_m, bearing, d.name, d.confidence, range_std,
                                    self.calibration.bearing_std_rad, used))
         return out
+

@@ -32,6 +32,16 @@ class OdometryModel:
         return np.array([rot1, trans, rot2])
 
     @staticmethod
+    def scaled(u: np.ndarray, stride: float, turn: float) -> np.ndarray:
+        """The true motion of reported control ``u``: translation times ``stride``, rotations times ``turn``."""
+        return np.array([u[0] * turn, u[1] * stride, u[2] * turn])
+
+    @staticmethod
+    def scale_directions(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """d scaled(u) / d stride and d scaled(u) / d turn, in the control space of V."""
+        return np.array([0.0, u[1], 0.0]), np.array([u[0], 0.0, u[2]])
+
+    @staticmethod
     def move(pose: np.ndarray, u: np.ndarray) -> np.ndarray:
         rot1, trans, rot2 = u
         heading = pose[2] + rot1
@@ -64,6 +74,16 @@ class VelocityModel:
     """
 
     alphas: tuple[float, float, float, float] = (0.1, 0.01, 0.01, 0.1)
+
+    @staticmethod
+    def scaled(u: np.ndarray, stride: float, turn: float) -> np.ndarray:
+        """The true motion of reported control ``u``: speed times ``stride``, turn rate times ``turn``."""
+        return np.array([u[0] * stride, u[1] * turn, u[2]])
+
+    @staticmethod
+    def scale_directions(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """d scaled(u) / d stride and d scaled(u) / d turn, in the control space of V (v, w)."""
+        return np.array([u[0], 0.0]), np.array([0.0, u[1]])
 
     @staticmethod
     def move(pose: np.ndarray, u: np.ndarray) -> np.ndarray:

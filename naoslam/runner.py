@@ -1,13 +1,14 @@
 """Drive a SLAM back end through a time-ordered sequence of odometry and frames, and score the result."""
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from naoslam.ekf_slam import EkfSlam, SlamConfig
 from naoslam.measurement import Measurement
-from naoslam.metrics import align_se2, error_stats
+from naoslam.metrics import align_se2, chi2_band, error_stats
 from naoslam.motion import OdometryModel, VelocityModel
 from naoslam.sim import Walk
 
@@ -50,7 +51,8 @@ def walk_sequence(walk: Walk, replace_measurements: list[list[Measurement]] | No
             measurements = replace_measurements[frame]
             frame += 1
         events.append(Event(step.t, control, measurements, step.true_pose, step.odometry_pose))
-    return Sequence(events, steps[0].true_pose.copy(), OdometryModel(), walk.landmarks, f"sim {walk.config.path}")
+    return Sequence(events, steps[0].true_pose.copy(), OdometryModel(walk.config.odometry_alphas()), walk.landmarks,
+                    f"sim {walk.config.path}")
 
 
 @dataclass
@@ -66,42 +68,82 @@ class SlamResult:
     landmarks_truth: dict[str, tuple[float, float]]
     nees: np.ndarray | None
     counts: dict[str, int] = field(default_factory=dict)
+    nis: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    time_per_step_us: dict[str, float] = field(default_factory=dict)
+    odometry_scales: tuple[float, float] = (1.0, 1.0)
 
     def metrics(self) -> dict:
-        """``robot_error`` and ``landmark_error`` (mean, std, rmse in m), odometry error, NEES, counts."""
-        out: dict = {"label": self.label, "counts": self.counts}
+        """Robot, odometry and landmark errors (mean, std, rmse in m), missing and phantom landmarks, NEES and NIS
+        with their 95 % bands, measurement counts, time per predict and update."""
+        out: dict = {"label": self.label, "counts": self.counts, "time_per_step_us": self.time_per_step_us,
+                     "odometry_scales": {"stride": self.odometry_scales[0], "turn": self.odometry_scales[1]}}
         if self.true_poses is not None:
             out["robot_error"] = error_stats(np.linalg.norm(self.poses[:, :2] - self.true_poses[:, :2], axis=1))
             if self.odometry_poses is not None:
                 out["odometry_error"] = error_stats(np.linalg.norm(self.odometry_poses[:, :2]
                                                                    - self.true_poses[:, :2], axis=1))
-        common = [k for k in self.landmarks if k in self.landmarks_truth]
-        if common:
-            estimated = np.array([self.landmarks[k] for k in common])
-            truth = np.array([self.landmarks_truth[k] for k in common])
-            if self.true_poses is None and len(common) >= 2:  # no robot truth: compare after a rigid alignment
-                estimated = align_se2(estimated, truth)
-            out["landmark_error"] = error_stats(np.linalg.norm(estimated - truth, axis=1))
-            out["landmark_error"]["mapped"] = len(common)
-            out["landmark_error"]["aligned"] = self.true_poses is None
+        if self.landmarks_truth:
+            out.update(score_map(self.landmarks, self.landmarks_truth, align=self.true_poses is None))
         if self.nees is not None and len(self.nees):
-            out["nees"] = {"mean": float(np.mean(self.nees)), "dof": 3}
+            band = chi2_band(3)
+            out["nees"] = {"mean": float(np.mean(self.nees)), "median": float(np.median(self.nees)), "dof": 3,
+                           "band95": band, "inside_band": float(np.mean((self.nees >= band[0])
+                                                                        & (self.nees <= band[1])))}
+        if len(self.nis):
+            band = chi2_band(2)
+            out["nis"] = {"mean": float(np.mean(self.nis)), "dof": 2, "band95": band,
+                          "inside_band": float(np.mean((self.nis >= band[0]) & (self.nis <= band[1])))}
         return out
+
+
+def score_map(landmarks: dict[str, np.ndarray], truth: dict[str, tuple[float, float]], align: bool) -> dict:
+    """Each true landmark against the nearest mapped landmark of its class (names ``yp``, ``yp#2``: class ``yp``).
+
+    Unmatched true landmarks are ``missing``; every other mapped landmark is a ``phantom``, reported with its
+    distance to the nearest true landmark. Without robot truth (``align``) the matched map is first moved by the
+    rigid transform that fits it best.
+    """
+    by_class: dict[str, list[str]] = {}
+    for name in landmarks:
+        by_class.setdefault(name.split("#")[0], []).append(name)
+    matched: dict[str, str] = {}
+    for label, position in truth.items():
+        names = by_class.get(label, [])
+        if names:
+            matched[label] = min(names, key=lambda n: float(np.linalg.norm(landmarks[n] - position)))
+    out: dict = {"landmarks_missing": sorted(set(truth) - set(matched))}
+    if matched:
+        estimated = np.array([landmarks[matched[k]] for k in matched])
+        reference = np.array([truth[k] for k in matched])
+        if align and len(matched) >= 2:
+            estimated = align_se2(estimated, reference)
+        out["landmark_error"] = {**error_stats(np.linalg.norm(estimated - reference, axis=1)),
+                                 "mapped": len(matched), "of": len(truth), "aligned": align}
+    points = np.array(list(truth.values()), dtype=float)
+    out["phantoms"] = {name: float(np.min(np.linalg.norm(points - position, axis=1)))
+                       for name, position in landmarks.items() if name not in matched.values()}
+    return out
 
 
 def run_slam(sequence: Sequence, config: SlamConfig = SlamConfig(),
              pose_std: tuple[float, float, float] = (0.01, 0.01, 0.01)) -> SlamResult:
-    """Run one back end over the sequence, recording the pose after every event."""
+    """Run one back end over the sequence, recording the pose after every event and the time each step took."""
     slam = EkfSlam(sequence.start, np.diag(np.square(pose_std)), sequence.motion, config)
-    times, poses, truth, odometry, nees = [], [], [], [], []
-    counts = {"accepted": 0, "initialised": 0, "pending": 0, "rejected": 0}
+    times, poses, truth, odometry, nees, nis = [], [], [], [], [], []
+    predict_ns, update_ns = [], []
+    counts = {"accepted": 0, "confused": 0, "initialised": 0, "pending": 0, "rejected": 0}
     for event in sequence.events:
         if event.control is not None:
+            start = time.perf_counter_ns()
             slam.predict(event.control)
+            predict_ns.append(time.perf_counter_ns() - start)
         if event.measurements:
+            start = time.perf_counter_ns()
             log = slam.update(event.measurements)
+            update_ns.append(time.perf_counter_ns() - start)
             for key in counts:
                 counts[key] += len(getattr(log, key))
+            nis += log.nis
         times.append(event.t)
         poses.append(slam.pose.copy())
         if event.true_pose is not None:
@@ -110,6 +152,9 @@ def run_slam(sequence: Sequence, config: SlamConfig = SlamConfig(),
         if event.odometry_pose is not None:
             odometry.append(event.odometry_pose)
     has_truth = len(truth) == len(poses)
+    timing = {"predict": float(np.mean(predict_ns)) / 1e3 if predict_ns else 0.0,
+              "update": float(np.mean(update_ns)) / 1e3 if update_ns else 0.0}
     return SlamResult(config.label, np.array(times), np.array(poses), np.array(truth) if has_truth else None,
                       np.array(odometry) if len(odometry) == len(poses) else None, slam.landmarks,
-                      sequence.landmarks_truth, np.array(nees) if has_truth else None, counts)
+                      sequence.landmarks_truth, np.array(nees) if has_truth else None, counts, np.array(nis),
+                      timing, slam.odometry_scales)

@@ -1,9 +1,12 @@
 """Simulated Nao walks on the SPL field with the six poles: true path, drifting odometry, noisy sightings.
 
 Measurement level: range/bearing of every pole inside the camera's field of view and range, with relative range
-noise, bearing noise, misses and false positives (a random class at a random place in view). The odometry has
-per-step noise and a systematic bias (stride scale and turn bias), tuned so that dead reckoning alone drifts
-about 0.5 m on average over a one-minute square, as the thesis's Nao did (0.50 m).
+noise (the reported standard deviation follows the *measured* range, as a real front end's must), bearing noise,
+misses, class confusions, one-off false positives (a random class at a random place in view) and persistent
+look-alikes (a pole of some class standing where no landmark of that class is, seen like a real one). The odometry
+has per-step noise and a systematic bias (stride scale and turn bias), tuned so that dead reckoning alone drifts
+about 0.5 m on average over a one-minute square, as the thesis's Nao did (0.50 m). The default walk, 90 s of the
+square, goes once round and along one more side, so it closes its loop.
 """
 from __future__ import annotations
 
@@ -18,6 +21,12 @@ from naoslam.measurement import Measurement
 from naoslam.motion import wrap
 
 PATHS = ("square", "circle", "figure8")
+#: ``Measurement.source`` of a simulated sighting that is not what it says: a look-alike pole, a one-off false
+#: positive, or a real landmark reported with another class (``confused from yp``). Scoring and the smoother
+#: reference read it; the filters never do.
+LOOKALIKE_SOURCE = "look-alike"
+FALSE_POSITIVE_SOURCE = "false positive"
+CONFUSED_SOURCE = "confused from "
 
 
 @dataclass(frozen=True)
@@ -25,7 +34,7 @@ class SimConfig:
     """A walk: path, duration and rates, sensor noise, and odometry error."""
 
     path: str = "square"
-    duration_s: float = 60.0
+    duration_s: float = 90.0
     side_m: float = 2.4
     speed_m_s: float = 0.16
     turn_rad_s: float = 0.6
@@ -37,14 +46,28 @@ class SimConfig:
     bearing_std_deg: float = 1.5
     miss_rate: float = 0.1
     false_positive_rate: float = 0.05
+    confusion_rate: float = 0.0
+    lookalikes: int = 0
     stride_scale: float = 1.25
     turn_bias: float = 0.04
     odometry_noise: tuple[float, float] = (0.02, 0.02)
     seed: int = 0
 
+    def odometry_alphas(self) -> tuple[float, float, float, float]:
+        """Odometry-model noise that matches this walk's random odometry error (the bias is left to the
+        filter's scale states): rotation per rotation and per translation, translation per translation and per
+        rotation, as variance coefficients."""
+        stride_noise, turn_noise = self.odometry_noise
+        return (turn_noise ** 2, turn_noise ** 2, stride_noise ** 2, 1e-4)
+
     def __post_init__(self) -> None:
         if self.path not in PATHS:
             raise ValueError(f"path {self.path!r} is not one of {', '.join(PATHS)}")
+        for name in ("false_positive_rate", "confusion_rate", "miss_rate"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ValueError(f"--{name.replace('_', '-')} {getattr(self, name)} must lie in 0..1")
+        if self.duration_s <= 0 or self.stride_scale <= 0 or self.lookalikes < 0:
+            raise ValueError("--duration and --odometry-bias must be positive, --lookalikes not negative")
 
 
 @dataclass
@@ -59,9 +82,12 @@ class SimStep:
 
 @dataclass
 class Walk:
+    """The walk's steps, the six landmarks and the look-alikes (class, x, y) that the front end also sees."""
+
     steps: list[SimStep]
     landmarks: dict[str, tuple[float, float]]
     config: SimConfig
+    lookalikes: list[tuple[str, float, float]]
 
 
 def _commands(config: SimConfig) -> list[tuple[float, float]]:
@@ -86,24 +112,41 @@ def _start(config: SimConfig) -> np.ndarray:
     return np.array([0.0, -config.side_m / 2, 0.0])
 
 
+def place_lookalikes(landmarks: dict[str, tuple[float, float]], config: SimConfig,
+                     rng: np.random.Generator) -> list[tuple[str, float, float]]:
+    """Look-alike poles inside the walk's area, at least 1 m from every landmark, each of a random class."""
+    out: list[tuple[str, float, float]] = []
+    reach = config.side_m / 2 + 1.5
+    while len(out) < config.lookalikes:
+        x, y = rng.uniform(-reach, reach, 2)
+        if all(math.hypot(x - lx, y - ly) >= 1.0 for lx, ly in landmarks.values()):
+            out.append((str(rng.choice(CLASSES)), float(x), float(y)))
+    return out
+
+
 def sightings(pose: np.ndarray, landmarks: dict[str, tuple[float, float]], config: SimConfig,
-              rng: np.random.Generator) -> list[Measurement]:
-    """Noisy measurements of the poles in view, with misses and false positives."""
+              rng: np.random.Generator, lookalikes: list[tuple[str, float, float]] = ()) -> list[Measurement]:
+    """Noisy measurements of the poles (landmarks and look-alikes) in view: misses, confusions, false positives."""
     half_fov = math.radians(config.hfov_deg) / 2
     bearing_std = math.radians(config.bearing_std_deg)
     out = []
-    for name, (x, y) in landmarks.items():
+    poles = [(name, x, y, "sim") for name, (x, y) in landmarks.items()]
+    poles += [(name, x, y, LOOKALIKE_SOURCE) for name, x, y in lookalikes]
+    for name, x, y, source in poles:
         r = math.hypot(x - pose[0], y - pose[1])
         b = float(wrap(math.atan2(y - pose[1], x - pose[0]) - pose[2]))
         if r > config.max_range_m or abs(b) > half_fov or rng.random() < config.miss_rate:
             continue
-        range_std = config.range_rel_std * r
-        out.append(Measurement(max(0.05, r + rng.normal(0, range_std)), float(wrap(b + rng.normal(0, bearing_std))),
-                               name, 0.95, range_std, bearing_std, "sim"))
+        measured = max(0.05, r + rng.normal(0, config.range_rel_std * r))
+        if rng.random() < config.confusion_rate:
+            source = f"{CONFUSED_SOURCE}{name}" if source == "sim" else source
+            name = str(rng.choice([c for c in CLASSES if c != name]))
+        out.append(Measurement(measured, float(wrap(b + rng.normal(0, bearing_std))), name, 0.95,
+                               config.range_rel_std * measured, bearing_std, source))
     if rng.random() < config.false_positive_rate:
         r = rng.uniform(0.5, config.max_range_m)
         out.append(Measurement(r, rng.uniform(-half_fov, half_fov), str(rng.choice(CLASSES)), 0.9,
-                               config.range_rel_std * r, bearing_std, "false positive"))
+                               config.range_rel_std * r, bearing_std, FALSE_POSITIVE_SOURCE))
     return out
 
 
@@ -111,11 +154,12 @@ def simulate(config: SimConfig = SimConfig(), landmarks: dict[str, tuple[float, 
     """The walk: true poses from the path, odometry with noise and bias, a frame every 1/frame_hz seconds."""
     rng = np.random.default_rng(config.seed)
     landmarks = dict(landmarks or GUTMANN_LANDMARKS)
+    lookalikes = place_lookalikes(landmarks, config, np.random.default_rng([config.seed, 1]))
     dt = 1.0 / config.odometry_hz
     frame_every = max(1, int(round(config.odometry_hz / config.frame_hz)))
     true_pose = _start(config)
     odometry = true_pose.copy()
-    steps = [SimStep(0.0, true_pose.copy(), odometry.copy(), sightings(true_pose, landmarks, config, rng))]
+    steps = [SimStep(0.0, true_pose.copy(), odometry.copy(), sightings(true_pose, landmarks, config, rng, lookalikes))]
     for i, (v, w) in enumerate(_commands(config), start=1):
         true_pose = np.array([true_pose[0] + v * dt * math.cos(true_pose[2]),
                               true_pose[1] + v * dt * math.sin(true_pose[2]), float(wrap(true_pose[2] + w * dt))])
@@ -124,6 +168,6 @@ def simulate(config: SimConfig = SimConfig(), landmarks: dict[str, tuple[float, 
         dtheta = w * dt * (1 + config.turn_bias) + rng.normal(0, config.odometry_noise[1]) * (abs(w) + abs(v)) * dt
         odometry = np.array([odometry[0] + ds * math.cos(odometry[2]), odometry[1] + ds * math.sin(odometry[2]),
                              float(wrap(odometry[2] + dtheta))])
-        seen = sightings(true_pose, landmarks, config, rng) if i % frame_every == 0 else None
+        seen = sightings(true_pose, landmarks, config, rng, lookalikes) if i % frame_every == 0 else None
         steps.append(SimStep(i * dt, true_pose, odometry, seen))
-    return Walk(steps, landmarks, config)
+    return Walk(steps, landmarks, config, lookalikes)

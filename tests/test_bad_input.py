@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
+import numpy as np
 import pytest
 import yaml
 
@@ -244,12 +245,16 @@ def _utias(tmp: Path, utias: Path, edit: Callable[[Path], None]) -> tuple[list[s
     return ["slam", "--utias", str(folder), "--duration", "20", "--out", str(tmp / "out")], folder, "Odometry.dat"
 
 
-def _odometry(tmp: Path, rows: str) -> tuple[list[str], Path, str]:
+def _odometry(tmp: Path, rows: str, frame: str | None = None) -> tuple[list[str], Path, str]:
+    """A recording whose odometry CSV holds ``rows``, with one black frame file named ``frame`` (the file the
+    message must name) or none (the CSV must be named)."""
     folder = tmp / "inputs"
     (folder / "frames").mkdir(parents=True)
     (folder / "odo.csv").write_text(rows)
+    if frame:
+        cv2.imwrite(str(folder / "frames" / frame), np.zeros((48, 64, 3), np.uint8))
     return ["slam", "--frames", str(folder / "frames"), "--odometry", str(folder / "odo.csv"),
-            "--frontend", "colour-filter", "--out", str(tmp / "out")], folder, "odo.csv"
+            "--frontend", "colour-filter", "--out", str(tmp / "out")], folder, frame or "odo.csv"
 
 
 def _swap_odometry_rows(folder: Path) -> None:
@@ -310,6 +315,17 @@ OTHER_CASES = [
     _plain("slam: odometry CSV with one row", lambda tmp, d: _odometry(tmp, "t,x,y,theta\n0,0,0,0\n")),
     _plain("slam: frames without odometry", lambda tmp, d: (["slam", "--frames", str(tmp), "--out", str(tmp / "out")],
                                                             d, "--odometry")),
+    _plain("slam: odometry CSV with unsorted times", lambda tmp, d: _odometry(tmp, "t,x,y,theta\n0,0,0,0\n2,1,0,0\n"
+                                                                                  "1,2,0,0\n")),
+    _plain("slam: odometry CSV empty", lambda tmp, d: _odometry(tmp, "")),
+    _plain("slam: frame after the odometry ends", lambda tmp, d: _odometry(tmp, "t,x,y,theta\n0,0,0,0\n1,1,0,0\n",
+                                                                           frame="50.0.jpg")),
+    _plain("slam: frame not named by its time", lambda tmp, d: _odometry(tmp, "t,x,y,theta\n0,0,0,0\n1,1,0,0\n",
+                                                                         frame="left.jpg")),
+    _plain("slam: --confusion-rate above 1", lambda tmp, d: (["slam", "--sim", "square", "--confusion-rate", "2",
+                                                              "--out", str(tmp / "out")], tmp, "--confusion-rate")),
+    _plain("slam: negative --lookalikes", lambda tmp, d: (["slam", "--sim", "square", "--lookalikes", "-1",
+                                                           "--out", str(tmp / "out")], tmp, "--lookalikes")),
 ]
 
 

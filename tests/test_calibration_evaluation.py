@@ -49,6 +49,9 @@ def test_calibration_shots_recover_the_camera_law(calibration_shots):
     assert calibration.height_law(focal * 0.42 / 2.0) == pytest.approx(2.0, rel=0.05)
     far = [row for row in report["errors_by_range"] if float(row["range_m"].split("-")[0]) >= 1.25]
     assert far and all(row["rule"] < 5.0 and row["fused"] < 5.0 for row in far)
+    # The shots carry the camera pose: wherever the foot is in view, its row gives the range within 2 %.
+    with_foot = [row for row in far if row["foot_samples"]]
+    assert with_foot and all(row["foot"] < 2.0 and row["fused+foot"] <= row["fused"] + 0.5 for row in with_foot)
     assert report["colour"]["b"] == pytest.approx(-1.0, abs=0.06)
     assert math.degrees(calibration.bearing_std_rad) < 0.3
 

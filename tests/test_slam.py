@@ -73,9 +73,10 @@ def test_odometry_control_reproduces_the_move():
     assert np.allclose(OdometryModel.move(a, OdometryModel.control(a, b)), b)
 
 
-@pytest.mark.parametrize("config", [SlamConfig(), SlamConfig(fej=True), SlamConfig(outlier_filter=True),
-                                    SlamConfig(gate=9.21), SlamConfig(min_views=3),
-                                    SlamConfig(fej=True, gate=9.21, min_views=5)])
+@pytest.mark.parametrize("config", [SlamConfig.thesis(), SlamConfig.thesis(linearisation="fej"),
+                                    SlamConfig.thesis(outlier_filter=True), SlamConfig.thesis(gate=9.21),
+                                    SlamConfig.thesis(min_views=3), SlamConfig(), SlamConfig(linearisation="standard"),
+                                    SlamConfig(linearisation="fej", min_views=5), SlamConfig(association="class")])
 def test_every_back_end_converges_to_the_truth_without_noise(config):
     walk = simulate(SimConfig(seed=3, **NOISE_FREE))
     metrics = run_slam(walk_sequence(walk), config).metrics()
@@ -85,14 +86,15 @@ def test_every_back_end_converges_to_the_truth_without_noise(config):
 
 def test_covariance_stays_symmetric_positive_definite_on_a_long_run():
     walk = simulate(SimConfig(duration_s=300, seed=5))
-    slam = EkfSlam(walk.steps[0].true_pose, np.eye(3) * 1e-4, OdometryModel(), SlamConfig(fej=True, gate=9.21))
+    slam = EkfSlam(walk.steps[0].true_pose, np.eye(3) * 1e-4, OdometryModel(walk.config.odometry_alphas()),
+                   SlamConfig())
     for previous, step in zip(walk.steps, walk.steps[1:]):
         slam.predict(OdometryModel.control(previous.odometry_pose, step.odometry_pose))
         if step.measurements:
             slam.update(step.measurements)
     assert np.array_equal(slam.sigma, slam.sigma.T)
     assert np.linalg.eigvalsh(slam.sigma).min() > 0
-    assert len(slam.slots) == 6
+    assert set(slam.landmarks) == set(walk.landmarks)
 
 
 def test_fej_and_classic_agree_while_their_linearisation_points_coincide():
@@ -108,10 +110,11 @@ def test_fej_and_classic_agree_while_their_linearisation_points_coincide():
             seen.add(m.signature)
     assert first_correction and first_correction > 1
     head = replace(sequence, events=sequence.events[:first_correction + 1])
-    classic, fej = run_slam(head, SlamConfig()), run_slam(head, SlamConfig(fej=True))
+    classic, fej = run_slam(head, SlamConfig.thesis()), run_slam(head, SlamConfig.thesis(linearisation="fej"))
     assert np.allclose(classic.poses, fej.poses, atol=1e-12)
     longer = replace(sequence, events=sequence.events[:first_correction + 40])
-    assert not np.allclose(run_slam(longer, SlamConfig()).poses, run_slam(longer, SlamConfig(fej=True)).poses)
+    assert not np.allclose(run_slam(longer, SlamConfig.thesis()).poses,
+                           run_slam(longer, SlamConfig.thesis(linearisation="fej")).poses)
 
 
 def _mapped_slam(config: SlamConfig) -> EkfSlam:
@@ -120,26 +123,26 @@ def _mapped_slam(config: SlamConfig) -> EkfSlam:
     return slam
 
 
-@pytest.mark.parametrize("config", [SlamConfig(outlier_filter=True), SlamConfig(gate=9.21)])
+@pytest.mark.parametrize("config", [SlamConfig.thesis(outlier_filter=True), SlamConfig.thesis(gate=9.21)])
 def test_outlier_filter_and_gate_reject_a_false_positive(config):
     slam = _mapped_slam(config)
     before = slam.mu.copy()
     log = slam.update([Measurement(3.5, -0.6, "bp", 0.9, 0.1, 0.03)])  # 1.5 m and 40 deg off the prediction
     assert log.rejected == ["bp"] and np.array_equal(slam.mu, before)
     assert slam.update([Measurement(2.02, 0.11, "bp", 0.9, 0.05, 0.02)]).accepted == ["bp"]
-    unfiltered = _mapped_slam(SlamConfig())
+    unfiltered = _mapped_slam(SlamConfig.thesis())
     assert unfiltered.update([Measurement(3.5, -0.6, "bp", 0.9, 0.1, 0.03)]).accepted == ["bp"]
 
 
 @pytest.mark.parametrize("n", [3, 5])
 def test_minimal_view_delays_initialisation_by_exactly_n_sightings(n):
-    slam = EkfSlam(np.zeros(3), np.eye(3) * 1e-4, OdometryModel(), SlamConfig(min_views=n))
+    slam = EkfSlam(np.zeros(3), np.eye(3) * 1e-4, OdometryModel(), SlamConfig.thesis(min_views=n))
     for sighting in range(1, n + 1):
         log = slam.update([Measurement(2.0 + 0.01 * sighting, 0.1, "py", 1.0, 0.05, 0.02)])
         assert ("py" in slam.slots) == (sighting == n)
         assert log.initialised == (["py"] if sighting == n else []) and log.pending == ([] if sighting == n else ["py"])
     # A sighting far from the others restarts the count.
-    slam = EkfSlam(np.zeros(3), np.eye(3) * 1e-4, OdometryModel(), SlamConfig(min_views=3))
+    slam = EkfSlam(np.zeros(3), np.eye(3) * 1e-4, OdometryModel(), SlamConfig.thesis(min_views=3))
     for r in (2.0, 2.0, 4.0, 4.0):
         slam.update([Measurement(r, 0.1, "gp", 1.0, 0.05, 0.02)])
     assert "gp" not in slam.slots
@@ -150,8 +153,8 @@ def test_fej_is_more_consistent_than_classic_on_a_monte_carlo_run():
     classic, fej = [], []
     for seed in range(8):
         sequence = walk_sequence(simulate(SimConfig(seed=seed, duration_s=90, false_positive_rate=0.0, miss_rate=0.0)))
-        classic.append(run_slam(sequence, SlamConfig()).metrics()["nees"]["mean"])
-        fej.append(run_slam(sequence, SlamConfig(fej=True)).metrics()["nees"]["mean"])
+        classic.append(run_slam(sequence, SlamConfig.thesis()).metrics()["nees"]["mean"])
+        fej.append(run_slam(sequence, SlamConfig.thesis(linearisation="fej")).metrics()["nees"]["mean"])
     assert np.mean(fej) < np.mean(classic)
 
 
@@ -214,7 +217,7 @@ def test_utias_loader_parses_the_shared_log():
     assert len(sequence.landmarks_truth) == 15 and frames
     assert all(m.signature in sequence.landmarks_truth for e in frames for m in e.measurements)
     assert all(a.t <= b.t for a, b in zip(sequence.events, sequence.events[1:]))
-    metrics = run_slam(sequence, SlamConfig(gate=9.21)).metrics()
+    metrics = run_slam(sequence, SlamConfig(association="class")).metrics()
     assert "robot_error" not in metrics and metrics["landmark_error"]["aligned"]
 
 

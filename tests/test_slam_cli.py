@@ -8,25 +8,29 @@ import numpy as np
 import pytest
 
 from detector.cli import main
-from detector.slam_run import FrontEnd, recorded_sequence
+from detector.slam_run import BACKENDS, REFERENCE_ROW, FrontEnd, recorded_sequence
+from naoslam.landmarks import CLASSES
 from naoslam.measurement import PowerLaw, RangeCalibration
 from naoslam.runner import run_slam
 
 
 def test_slam_command_writes_metrics_map_path_plots_and_comparison(tmp_path, capsys):
     out = tmp_path / "slam"
-    assert main(["slam", "--sim", "square", "--duration", "30", "--backend", "fej", "--gate", "--min-views", "3",
+    assert main(["slam", "--sim", "square", "--duration", "30", "--backend", "fej", "--lookalikes", "1",
                  "--compare", "2", "--out", str(out)]) == 0
     metrics = json.loads((out / "metrics.json").read_text())
     for key in ("robot_error", "landmark_error"):
         assert set(metrics[key]) >= {"mean", "std", "rmse"}
-    assert metrics["label"] == "FEJ-EKF + gate 9.21 + min view 3" and "nees" in metrics
+    assert metrics["label"] == "FEJ-EKF + odometry scales + NN association + gate 9.21 + min view 3"
+    assert {"nees", "nis", "counts", "time_per_step_us", "phantoms", "landmarks_missing"} <= set(metrics)
     rows = json.loads((out / "comparison.json").read_text())
-    assert len(rows) == 8 and all(row["seeds"] == 2 for row in rows)
+    assert [row["backend"] for row in rows] == [*BACKENDS, REFERENCE_ROW] and all(row["seeds"] == 2 for row in rows)
+    reference = rows[-1]
+    assert reference["landmark_error"] < rows[0]["landmark_error"] and reference["phantoms"] == 0
     for name in ("map.png", "errors.png"):
         assert cv2.imread(str(out / name)) is not None
     assert len((out / "path.csv").read_text().splitlines()) == 301 + 1
-    assert set(json.loads((out / "map.json").read_text())) <= {"bp", "gp", "yp", "pb", "pg", "py"}
+    assert {name.split("#")[0] for name in json.loads((out / "map.json").read_text())} <= set(CLASSES)
     assert "back ends on sim square" in capsys.readouterr().out
 
 

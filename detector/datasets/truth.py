@@ -39,7 +39,8 @@ def load_truth(dataset: Dataset, csv_path: Path | None = None) -> dict[str, Imag
             raise DatasetError([Problem("error", path, None,
                                         f"landmarks of {sample.image.name} do not follow its label file's classes",
                                         "regenerate annotations.json with the labels, or pass a CSV with --truth")])
-        truth[sample.image.name] = [dict(lm, image_width=entry.get("width")) for lm in landmarks]
+        truth[sample.image.name] = [dict(lm, image_width=entry.get("width"), camera=entry.get("camera"))
+                                    for lm in landmarks]
     return truth
 
 

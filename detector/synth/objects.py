@@ -71,10 +71,14 @@ class Quad:
                          for su in (-1, 1) for sv in (-1, 1)])
 
 
-def pole(code: str, x: float, y: float, geometry, rotation: np.ndarray | None = None) -> Cylinder:
-    """A landmark cylinder: white base, then the bottom band, then the top band (``code`` names top first)."""
+def pole(code: str, x: float, y: float, geometry, rotation: np.ndarray | None = None,
+         paint: dict[str, RGB] = BAND_RGB) -> Cylinder:
+    """A landmark cylinder: white base, then the bottom band, then the top band (``code`` names top first).
+
+    ``paint`` maps each band letter to its colour (the nominal paints unless a scene varies them).
+    """
     base_h, band = geometry.base_height, geometry.band_height
-    bands = ((0.0, base_h, WHITE), (base_h, base_h + band, BAND_RGB[code[1]]),
-             (base_h + band, base_h + 2 * band, BAND_RGB[code[0]]))
+    bands = ((0.0, base_h, WHITE), (base_h, base_h + band, paint[code[1]]),
+             (base_h + band, base_h + 2 * band, paint[code[0]]))
     return Cylinder(np.array([x, y, 0.0]), np.eye(3) if rotation is None else rotation,
                     geometry.radius, geometry.height, bands, label=code)

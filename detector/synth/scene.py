@@ -1,6 +1,7 @@
 """Random scenes: a Nao camera somewhere on the field, poles and look-alike distractors in view, a lit room."""
 from __future__ import annotations
 
+import colorsys
 import math
 from dataclasses import dataclass, field
 
@@ -30,6 +31,11 @@ class SceneConfig:
     max_lean_deg: float = 12.0
     max_distractors: int = 4
     view_margin_deg: float = 6.0
+    #: Printed paint varies between poles and prints: hue shift (fraction of the circle, s.d.), saturation and value
+    #: scales (uniform ranges) drawn per band of each pole.
+    paint_hue_sd: float = 0.025
+    paint_saturation: tuple[float, float] = (0.55, 1.1)
+    paint_value: tuple[float, float] = (0.45, 1.05)
 
 
 @dataclass
@@ -67,7 +73,7 @@ def sample_scene(rng: np.random.Generator, camera: PinholeCamera, config: SceneC
         lean = None
         if rng.random() < config.p_lean:
             lean = tilt_rotation(math.radians(rng.uniform(2, config.max_lean_deg)), rng.uniform(-math.pi, math.pi))
-        scene.cylinders.append(pole(str(rng.choice(CLASSES)), *spot, config.pole, lean))
+        scene.cylinders.append(pole(str(rng.choice(CLASSES)), *spot, config.pole, lean, paint=_paint(rng, config)))
     for _ in range(int(rng.integers(0, config.max_distractors + 1))):
         spot = _free_spot(rng, pose, camera, config, occupied)
         if spot is not None:
@@ -120,6 +126,18 @@ def _lighting(rng) -> Lighting:
     azimuth, elevation = rng.uniform(-math.pi, math.pi), math.radians(rng.uniform(25, 75))
     direction = np.array([math.cos(elevation) * math.cos(azimuth), math.cos(elevation) * math.sin(azimuth), math.sin(elevation)])
     return Lighting(direction, ambient=rng.uniform(0.35, 0.6), diffuse=rng.uniform(0.45, 0.8))
+
+
+def _paint(rng, config: SceneConfig) -> dict[str, tuple[float, float, float]]:
+    """One pole's band colours: each nominal paint shifted in hue and scaled in saturation and value."""
+    paint = {}
+    for letter, rgb in BAND_RGB.items():
+        hue, saturation, value = colorsys.rgb_to_hsv(*rgb)
+        hue = (hue + rng.normal(0.0, config.paint_hue_sd)) % 1.0
+        saturation = min(1.0, saturation * rng.uniform(*config.paint_saturation))
+        value = min(1.0, value * rng.uniform(*config.paint_value))
+        paint[letter] = colorsys.hsv_to_rgb(hue, saturation, value)
+    return paint
 
 
 def _jitter(rng, rgb, amount: float = 0.06) -> tuple[float, float, float]:

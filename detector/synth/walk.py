@@ -24,15 +24,21 @@ CAMERA_HEIGHT_M = 0.5
 _EFFECTS = None
 
 
+def _swaying_pose(walk: Walk, step: int, rng: np.random.Generator) -> CameraPose:
+    """The camera on the true pose with a little walking sway in height, pitch and roll."""
+    x, y, theta = walk.steps[step].true_pose
+    return CameraPose(x, y, CAMERA_HEIGHT_M + rng.normal(0, 0.005), theta,
+                      math.radians(WALK_PITCH_DEG + rng.normal(0, 1.0)), math.radians(rng.normal(0, 1.5)))
+
+
 def walk_scene(walk: Walk, step: int, seed: int, camera: PinholeCamera) -> Scene:
-    """The scene at one step: camera on the true pose with a little walking sway, the poles, the goals."""
+    """The scene at one step: the swaying camera, the poles and look-alikes, the goals."""
     rng = np.random.default_rng([seed, step])
     lighting, room = venue(np.random.default_rng([seed, 0xF1E1D]))
-    x, y, theta = walk.steps[step].true_pose
-    pose = CameraPose(x, y, CAMERA_HEIGHT_M + rng.normal(0, 0.005), theta,
-                      math.radians(WALK_PITCH_DEG + rng.normal(0, 1.0)), math.radians(rng.normal(0, 1.5)))
+    pose = _swaying_pose(walk, step, rng)
     scene = Scene(camera, pose, lighting, room, effects_seed=int(rng.integers(2**31)), jpeg_quality=90)
     scene.cylinders = [pole(code, px, py, PoleGeometry()) for code, (px, py) in walk.landmarks.items()]
+    scene.cylinders += [pole(code, px, py, PoleGeometry()) for code, px, py in walk.lookalikes]
     scene.cylinders += goal_posts(FieldGeometry())
     return scene
 
@@ -53,3 +59,9 @@ def render_walk(walk: Walk, seed: int = 0, camera: PinholeCamera = PinholeCamera
     steps = [i for i, s in enumerate(walk.steps) if s.measurements is not None]
     frames = ordered_map(_render, [(walk, i, seed, camera) for i in steps], workers or default_workers(len(steps)))
     return list(tqdm(frames, total=len(steps), desc="rendering the walk", unit="frame", disable=not progress))
+
+
+def walk_camera_poses(walk: Walk, seed: int = 0) -> list[CameraPose]:
+    """The camera pose of every frame :func:`render_walk` renders (what the robot's joint angles would give)."""
+    return [_swaying_pose(walk, i, np.random.default_rng([seed, i]))
+            for i, s in enumerate(walk.steps) if s.measurements is not None]

@@ -1,0 +1,140 @@
+"""What the camera's pose says about a detection: every pole stands on the floor and is shorter than the camera is
+high, so its foot row fixes its distance and its pixel height must agree with that distance.
+
+With the camera's height, pitch and roll (from the robot's joint angles), a mask's lowest row is the front edge of
+the pole's base on the ground plane: intersecting that pixel's ray with the floor gives a range that does not
+depend on the mask's width or on the top of the pole (a third range estimate, exact for an uncut pole). The
+ground-plane gate rejects a detection whose foot lies above the horizon, whose top reaches above the horizon
+(taller than the camera is high), or whose pixel height disagrees with a 0.42 m pole at the foot's distance.
+Conventions as :mod:`naoslam.camera`; ranges and bearings relative to the camera (x forward, y left).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from naoslam.camera import CameraPose, PinholeCamera
+from naoslam.landmarks import PoleGeometry
+
+#: Default tolerance of the height check: measured / expected pixel height must lie within [1/(1+t), 1+t].
+HEIGHT_TOLERANCE = 0.35
+#: Rows a pole's top may reach above the horizon (pose error, mask bleed) before it counts as too tall.
+HORIZON_MARGIN_PX = 6.0
+#: Rows above the frame's bottom within which a mask counts as cut by it.
+BOTTOM_MARGIN_PX = 4
+#: Beyond this the foot's ray meets the floor too flat to trust (or the foot is a far wall's base).
+MAX_GROUND_RANGE_M = 15.0
+
+
+@dataclass(frozen=True)
+class Foot:
+    """Where a mask's lowest point meets the floor: range to the pole's axis (m), bearing (rad), the foot row."""
+
+    range_m: float
+    bearing_rad: float
+    row: float
+
+
+@dataclass(frozen=True)
+class GroundView:
+    """A camera of known height, pitch and roll over a flat floor (``pose``'s x, y and yaw are ignored)."""
+
+    camera: PinholeCamera
+    pose: CameraPose
+    pole: PoleGeometry = PoleGeometry()
+
+    @property
+    def _rotation(self) -> np.ndarray:
+        return CameraPose(0.0, 0.0, self.pose.z, 0.0, self.pose.pitch, self.pose.roll).world_from_camera()
+
+    def ground_point(self, u: float, v: float) -> np.ndarray | None:
+        """(x, y) on the floor seen at pixel (u, v), or None when the ray does not go down to the floor."""
+        ray = self._rotation @ self.camera.pixel_rays(u, v)
+        if ray[2] >= -1e-9:
+            return None
+        t = self.pose.z / -ray[2]
+        return np.array([t * ray[0], t * ray[1]])
+
+    def project(self, point: np.ndarray) -> np.ndarray | None:
+        """Pixel (u, v) of a point (x, y, z) relative to the camera's ground position; None behind the camera."""
+        in_camera = (np.asarray(point, float) - np.array([0.0, 0.0, self.pose.z])) @ self._rotation
+        return None if in_camera[2] <= 1e-9 else self.camera.project(in_camera)
+
+    def horizon_row(self, u: float) -> float:
+        """Image row of the horizon at column ``u`` (where rays run level with the floor)."""
+        far = self.project(np.array([1e6, 0.0, self.pose.z]))
+        side = self.project(np.array([1e6, 1e5, self.pose.z]))
+        if far is None or side is None or abs(side[0] - far[0]) < 1e-9:
+            return -math.inf
+        return float(far[1] + (u - far[0]) * (side[1] - far[1]) / (side[0] - far[0]))
+
+    def reaches_bottom(self, mask: np.ndarray, origin: tuple[int, int] = (0, 0)) -> bool:
+        """True when the mask comes within ``BOTTOM_MARGIN_PX`` of the frame's last row: the foot may lie below the
+        frame (a network's mask, upsampled from its prototypes, can stop a few pixels short of the border)."""
+        rows = np.flatnonzero(mask.any(axis=1))
+        return bool(len(rows)) and origin[1] + rows[-1] >= self.camera.height - 1 - BOTTOM_MARGIN_PX
+
+    def foot(self, mask: np.ndarray, origin: tuple[int, int] = (0, 0)) -> Foot | None:
+        """The pole's foot from its mask's lowest row; None when the mask reaches the frame's bottom (the foot may
+        be cut off), or the row's ray misses the floor or meets it too far away.
+
+        The lowest silhouette point is the base circle's edge nearest the camera, so the axis lies one radius
+        further along the same bearing.
+        """
+        rows = np.flatnonzero(mask.any(axis=1))
+        if not len(rows) or self.reaches_bottom(mask, origin):
+            return None
+        bottom = rows[-1]
+        columns = np.flatnonzero(mask[bottom])
+        u = origin[0] + float(columns.mean()) + 0.5
+        v = origin[1] + float(bottom) + 1.0  # the lower edge of the lowest mask row
+        point = self.ground_point(u, v)
+        if point is None:
+            return None
+        front = float(np.hypot(*point))
+        if front > MAX_GROUND_RANGE_M:
+            return None
+        return Foot(front + self.pole.radius, float(math.atan2(point[1], point[0])), v)
+
+    def expected_height_px(self, foot: Foot) -> float:
+        """Pixel height of a whole upright pole standing at ``foot``: from its base's near edge to its top's far
+        edge (the camera looks down on the top)."""
+        c, s = math.cos(foot.bearing_rad), math.sin(foot.bearing_rad)
+        bottom = self.project(np.array([(foot.range_m - self.pole.radius) * c, (foot.range_m - self.pole.radius) * s,
+                                        0.0]))
+        top = self.project(np.array([(foot.range_m + self.pole.radius) * c, (foot.range_m + self.pole.radius) * s,
+                                     self.pole.height]))
+        if bottom is None or top is None:
+            return math.nan
+        return float(bottom[1] - top[1])
+
+    def foot_range_std(self, foot: Foot, pixel_std: float = 1.0, pitch_std_rad: float = math.radians(0.5)) -> float:
+        """Standard deviation (m) of the foot-row range: one foot-row pixel and the pitch's uncertainty, through
+        d range / d angle = range^2 / height."""
+        angle_std = math.hypot(pixel_std / self.camera.focal_px, pitch_std_rad)
+        return foot.range_m ** 2 / self.pose.z * angle_std
+
+    def check(self, mask: np.ndarray, origin: tuple[int, int] = (0, 0),
+              tolerance: float = HEIGHT_TOLERANCE) -> str | None:
+        """Why this mask cannot be a pole standing on the floor, or None when it can."""
+        rows = np.flatnonzero(mask.any(axis=1))
+        if not len(rows):
+            return "empty mask"
+        top_row = origin[1] + rows[0]
+        top_columns = np.flatnonzero(mask[rows[0]])
+        top_column = origin[0] + float(top_columns.mean()) + 0.5
+        if top_row < self.horizon_row(top_column) - HORIZON_MARGIN_PX:
+            return "reaches above the horizon: taller than the camera is high"
+        if self.reaches_bottom(mask, origin):
+            return None  # the foot may be below the frame: nothing more to check
+        foot = self.foot(mask, origin)
+        if foot is None:
+            return "foot above the horizon"
+        expected = self.expected_height_px(foot)
+        measured = foot.row - top_row
+        cut_at_top = top_row <= 0
+        if measured > expected * (1 + tolerance) or (not cut_at_top and measured < expected / (1 + tolerance)):
+            return f"{measured:.0f} px tall where a pole at {foot.range_m:.1f} m is {expected:.0f} px"
+        return None

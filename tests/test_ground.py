@@ -1,0 +1,92 @@
+"""The camera's pose in the front end: foot-row range, the ground-plane gate, and their use in measurements."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from detector.synth.objects import WHITE, Cylinder, pole
+from detector.synth.render import render_scene
+from detector.synth.scene import Scene, _lighting, _room
+from naoslam.camera import CameraPose, PinholeCamera
+from naoslam.detector import Detection, mask_centre_column, rotated_box_of_mask
+from naoslam.ground import GroundView
+from naoslam.landmarks import PoleGeometry
+from naoslam.measurement import MeasurementModel, PowerLaw, RangeCalibration
+
+CAMERA = PinholeCamera()
+POSE = CameraPose(z=0.5, pitch=math.radians(20), roll=math.radians(3))
+
+
+def _rendered(cylinders: list[Cylinder], pose: CameraPose = POSE):
+    rng = np.random.default_rng(0)
+    scene = Scene(CAMERA, pose, _lighting(rng), _room(rng), cylinders=cylinders, effects=False)
+    return render_scene(scene)
+
+
+def _ring(ranges, angle_deg: float = 8.0) -> list[Cylinder]:
+    """Landmarks at the given ranges along alternating bearings, none hiding another."""
+    out = []
+    for i, r in enumerate(ranges):
+        a = math.radians(angle_deg if i % 2 else -angle_deg) * (1 + i / len(ranges))
+        out.append(pole("bp", r * math.cos(a), r * math.sin(a), PoleGeometry()))
+    return out
+
+
+def test_horizon_of_a_level_camera_is_the_principal_row():
+    view = GroundView(CAMERA, CameraPose(z=0.5))
+    assert view.horizon_row(100.0) == pytest.approx(CAMERA.cy, abs=1e-6)
+    assert view.ground_point(320.0, 100.0) is None  # above the horizon: the ray never meets the floor
+
+
+def test_foot_row_range_matches_the_renderer_within_2_percent_from_1_to_6_m():
+    frame = _rendered(_ring([1.0, 1.5, 2.0, 3.0, 4.0, 5.0, 6.0]))
+    view = GroundView(CAMERA, POSE)
+    assert len(frame.poles) == 7
+    for truth in frame.poles:
+        assert not truth.partial
+        foot = view.foot(truth.mask)
+        assert foot.range_m == pytest.approx(truth.range_m, rel=0.02)
+        assert foot.bearing_rad == pytest.approx(truth.bearing_rad, abs=math.radians(1.0))
+
+
+def test_the_gate_keeps_real_poles_and_rejects_a_pole_on_a_wall_and_a_too_tall_tube():
+    geometry = PoleGeometry()
+    on_wall = pole("py", 3.0, 0.6, geometry)
+    on_wall.base = on_wall.base + [0.0, 0.0, 0.45]  # a poster-like pole hanging half a metre up
+    tall = Cylinder(np.array([2.5, -0.7, 0.0]), np.eye(3), 0.045, 1.2, ((0.0, 1.2, WHITE),))
+    frame = _rendered(_ring([1.2, 2.0, 3.5, 5.0]) + [on_wall, tall])
+    view = GroundView(CAMERA, POSE)
+    real = [p for p in frame.poles if p.position_m[0] != 3.0]
+    assert [view.check(p.mask) for p in real] == [None] * 4
+    wall_mask = next(p for p in frame.poles if p.position_m[0] == 3.0).mask
+    assert view.check(wall_mask) is not None
+    # A distractor carries no mask of its own: render the tube alone, labelled, for its silhouette.
+    tall.label = "tube"
+    tube_mask = _rendered([tall]).poles[0].mask
+    assert tube_mask.any() and view.check(tube_mask) == "reaches above the horizon: taller than the camera is high"
+
+
+def _detection(mask: np.ndarray) -> Detection:
+    rows, columns = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    return Detection(0, "bp", 0.99, (columns[0], rows[0], columns[-1] + 1, rows[-1] + 1), mask, (0, 0),
+                     rotated_box_of_mask(mask), mask_centre_column(mask))
+
+
+def test_measurements_use_the_foot_row_and_distrust_a_hidden_foot():
+    calibration = RangeCalibration(PowerLaw(60.0, -1.0, 0.15), PowerLaw(200.0, -1.0, 0.15))
+    model = MeasurementModel(calibration, min_confidence=0.5)
+    truth = _rendered(_ring([3.0])).poles[0]
+    with_pose = model.measure([_detection(truth.mask)], CAMERA.width, POSE, CAMERA.height)[0]
+    without = model.measure([_detection(truth.mask)], CAMERA.width)[0]
+    assert with_pose.source.endswith("+foot") and not without.source.endswith("+foot")
+    assert abs(with_pose.range_m - truth.range_m) < abs(without.range_m - truth.range_m)
+    assert with_pose.range_std < without.range_std
+    hidden = truth.mask.copy()
+    rows = np.flatnonzero(hidden.any(axis=1))
+    hidden[rows[0] + (rows[-1] - rows[0]) // 3:] = False  # a robot in front hides the lower two thirds
+    measured = model.measure([_detection(hidden)], CAMERA.width, POSE, CAMERA.height)[0]
+    assert not measured.source.endswith("+foot")
+    with pytest.raises(ValueError, match="image height"):
+        model.measure([_detection(truth.mask)], CAMERA.width, POSE)
