@@ -22,7 +22,9 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -n 2
 
+# The benchmarks also compare OpenVINO (and its NNCF INT8) with onnxruntime: an extra, not a runtime dependency.
 bench: $(STAMP)
+	$(BIN)/python -m pip install -q -e '.[bench]'
 	for b in benchmarks/bench_*.py; do $(BIN)/python $$b || exit 1; done
 
 clean:
@@ -44,7 +46,7 @@ pole-model: $(STAMP)
 	$(BIN)/poles synth --out runs/pole-tune --images 400 --seed 79 --backgrounds $(BACKGROUNDS) --backdrop-share 0.75
 	$(BIN)/poles synth --out runs/pole-calib --images 135 --seed 5 --calibration-shots
 	$(BIN)/poles export --weights runs/pole-model/weights/best.pt --out runs/pole-model/poles-yolov8n-seg.onnx \
-		--data runs/pole-tune --int8 --force
+		--data runs/pole-tune --int8 --dynamic --force
 	$(BIN)/poles calibrate --data runs/pole-calib --out runs/pole-model/calibration.json \
 		--model runs/pole-model/poles-yolov8n-seg.onnx --force
 	$(BIN)/poles evaluate --model runs/pole-model/poles-yolov8n-seg.onnx --data runs/pole-tune --conf 0.5 \

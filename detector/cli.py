@@ -127,6 +127,9 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("--calib-data", type=Path, help="dataset whose training images calibrate INT8 (default --data)")
     export.add_argument("--reduce-range", action="store_true", help="7-bit INT8 weights, for x86 CPUs without VNNI")
     export.add_argument("--conf", type=float, default=0.25, help="confidence threshold used when verifying")
+    export.add_argument("--dynamic", action="store_true",
+                        help="any input size (multiples of 32), so the front end can run on the band below the "
+                             "horizon alone when it knows the camera pose")
     export.add_argument("--force", action="store_true", help="replace existing output files")
 
     calib = sub.add_parser("calibrate", help="fit range = a * px^b from poles of known distance")
@@ -355,7 +358,7 @@ def _export(args: argparse.Namespace) -> int:
     from export.run import ExportJob, print_report, run_export
 
     job = ExportJob(args.weights, args.out, tuple(args.imgsz), args.data, args.int8, args.calib_data,
-                    args.reduce_range, args.conf, args.force)
+                    args.reduce_range, args.conf, args.force, args.dynamic)
     print_report(run_export(job))
     return 0
 

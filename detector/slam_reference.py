@@ -11,30 +11,27 @@ from __future__ import annotations
 import numpy as np
 
 from naoslam.measurement import Measurement
-from naoslam.motion import OdometryModel
+from naoslam.motion import OdometryModel, VelocityModel
 from naoslam.runner import Sequence, SlamResult
-from naoslam.sim import CONFUSED_SOURCE
+from naoslam.sim import CONFUSED_SOURCE, FALSE_POSITIVE_SOURCE, LOOKALIKE_SOURCE
 
 LABEL = "GTSAM smoother (oracle association)"
 _FINITE_STEP = 1e-6
 
 
 def true_identity(m: Measurement) -> str | None:
-    """The landmark a simulated sighting really shows, or None for a look-alike or a false positive."""
-    if m.source == "sim":
-        return m.signature
+    """The landmark a sighting really shows (a UTIAS barcode is its identity), or None for a simulated look-alike
+    or false positive."""
     if m.source.startswith(CONFUSED_SOURCE):
         return m.source[len(CONFUSED_SOURCE):]
-    return None
+    return None if m.source in (LOOKALIKE_SOURCE, FALSE_POSITIVE_SOURCE) else m.signature
 
 
 def smooth(sequence: Sequence, stride_scale_std: float = 0.3, turn_scale_std: float = 0.1,
            pose_std: float = 0.01) -> SlamResult:
-    """Batch-optimise a simulated measurement-level sequence (odometry controls and frames with the true pose)."""
+    """Batch-optimise a measurement-level sequence: a simulated walk or a UTIAS log (one pose per frame)."""
     import gtsam
 
-    if not isinstance(sequence.motion, OdometryModel):
-        raise ValueError("the smoother reference takes odometry (rot1, trans, rot2) sequences: the simulated walks")
     graph, initial = gtsam.NonlinearFactorGraph(), gtsam.Values()
     scales = gtsam.symbol("s", 0)
     graph.add(gtsam.PriorFactorPoint2(scales, np.ones(2), gtsam.noiseModel.Diagonal.Sigmas(
@@ -47,8 +44,8 @@ def smooth(sequence: Sequence, stride_scale_std: float = 0.3, turn_scale_std: fl
     for event in sequence.events:
         if event.control is not None:
             pending.append(event.control)
-            pose = OdometryModel.move(pose, event.control)
-        if event.true_pose is None or not (keys == [] or event.measurements is not None):
+            pose = sequence.motion.move(pose, event.control)
+        if keys and event.measurements is None:
             continue
         key = gtsam.symbol("x", len(keys))
         initial.insert(key, gtsam.Pose2(*pose))
@@ -66,6 +63,8 @@ def smooth(sequence: Sequence, stride_scale_std: float = 0.3, turn_scale_std: fl
             identity = true_identity(m)
             if identity is None:
                 continue
+            if identity not in sequence.landmarks_truth:
+                continue
             landmark = gtsam.symbol("l", sorted(sequence.landmarks_truth).index(identity))
             if identity not in seen:
                 seen.add(identity)
@@ -79,20 +78,22 @@ def smooth(sequence: Sequence, stride_scale_std: float = 0.3, turn_scale_std: fl
     landmarks = {name: values.atPoint2(gtsam.symbol("l", i))
                  for i, name in enumerate(sorted(sequence.landmarks_truth)) if name in seen}
     stride, turn = values.atPoint2(scales)
-    return SlamResult(LABEL, np.array(times), poses, np.array(truth),
-                      np.array(odometry) if all(o is not None for o in odometry) else None, landmarks,
+    known = all(p is not None for p in truth)
+    return SlamResult(LABEL, np.array(times), poses, np.array(truth) if known else None,
+                      np.array(odometry) if known and all(o is not None for o in odometry) else None, landmarks,
                       sequence.landmarks_truth, None, odometry_scales=(float(stride), float(turn)))
 
 
-def _relative_motion(controls: list[np.ndarray], stride: float, turn: float) -> np.ndarray:
+def _relative_motion(controls: list[np.ndarray], motion: OdometryModel | VelocityModel, stride: float,
+                     turn: float) -> np.ndarray:
     """The pose reached from the origin by the reported controls with the odometry scales applied."""
     pose = np.zeros(3)
     for u in controls:
-        pose = OdometryModel.move(pose, OdometryModel.scaled(u, stride, turn))
+        pose = motion.move(pose, motion.scaled(u, stride, turn))
     return pose
 
 
-def _odometry_factor(previous, current, scales, controls: list[np.ndarray], motion: OdometryModel):
+def _odometry_factor(previous, current, scales, controls: list[np.ndarray], motion: OdometryModel | VelocityModel):
     """Between factor whose measured motion depends on the scale variable (numeric Jacobians); its noise is the
     motion model's, propagated over the controls."""
     import gtsam
@@ -109,7 +110,7 @@ def _odometry_factor(previous, current, scales, controls: list[np.ndarray], moti
         s = values.atPoint2(this.keys()[2])
 
         def residual(a, b, s) -> np.ndarray:
-            expected = gtsam.Pose2(*_relative_motion(controls, s[0], s[1]))
+            expected = gtsam.Pose2(*_relative_motion(controls, motion, s[0], s[1]))
             return gtsam.Pose2.Logmap(expected.between(a.between(b)))
 
         value = residual(a, b, s)

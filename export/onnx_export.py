@@ -29,8 +29,12 @@ def refuse_overwrite(out: Path, force: bool) -> None:
 
 
 def export_onnx(weights: Path, out: Path, input_hw: tuple[int, int] = NAO_INPUT_HW, force: bool = False,
-                extra: dict[str, Any] | None = None) -> Path:
-    """Export ``weights`` (an Ultralytics segmentation .pt) to ONNX at a fixed input size; returns ``out``."""
+                extra: dict[str, Any] | None = None, dynamic: bool = False) -> Path:
+    """Export ``weights`` (an Ultralytics segmentation .pt) to ONNX; returns ``out``.
+
+    ``input_hw`` is the full frame's input size. ``dynamic`` lets the input height and width vary (multiples of
+    32), so the front end can run the network on the band below the horizon alone (``LandmarkDetector``'s crop).
+    """
     from ultralytics import YOLO
 
     weights, out = Path(weights), Path(out)
@@ -46,7 +50,7 @@ def export_onnx(weights: Path, out: Path, input_hw: tuple[int, int] = NAO_INPUT_
         if model.task != "segment":
             raise ValueError(f"{weights}: a {model.task} model, not a segmentation model - train a *-seg model")
         with _quiet_ultralytics():
-            exported = Path(model.export(format="onnx", imgsz=list(input_hw), simplify=True, dynamic=False,
+            exported = Path(model.export(format="onnx", imgsz=list(input_hw), simplify=True, dynamic=dynamic,
                                          nms=False, device="cpu", verbose=False))
         names = model.names
         info = ModelInfo(tuple(names[i] for i in sorted(names)), tuple(input_hw), int(max(model.model.stride)),

@@ -35,6 +35,7 @@ class ExportJob:
     reduce_range: bool = False
     conf: float = 0.25
     force: bool = False
+    dynamic: bool = False
 
     def __post_init__(self) -> None:
         if any(side < 32 or side % 32 for side in self.input_hw):
@@ -91,11 +92,12 @@ def run_export(job: ExportJob) -> dict:
     frames = read_frames(dataset_images(data, ("valid", "test"), VERIFY_FRAMES))
     unverified = job.out.with_name(f".{job.out.name}.unverified")
     try:
-        export_onnx(job.weights, unverified, job.input_hw, force=True)
+        export_onnx(job.weights, unverified, job.input_hw, force=True, dynamic=job.dynamic)
         reference = ultralytics_predict(job.weights, frames, job.input_hw, job.conf)
         fp32 = frontend_predict(unverified, frames, job.conf)
         agreement = compare(reference, fp32, job.conf, FP32_TOLERANCE.margin)
         report = {"weights": str(job.weights), "onnx": str(job.out), "input_hw": list(job.input_hw),
+                  "dynamic": job.dynamic,
                   "verify_frames": len(frames), "conf": job.conf,
                   "fp32_vs_pytorch": agreement.as_dict(), "fp32_problems": agreement.problems(FP32_TOLERANCE)}
         if report["fp32_problems"]:

@@ -102,26 +102,42 @@ class ColourFilter:
         if frame is None or frame.ndim != 3 or frame.shape[2] != 3 or frame.size == 0:
             raise ValueError("the colour filter needs an HxWx3 BGR uint8 frame")
         colours = self.classify(frame)
-        masks = {name: (colours & bit) > 0 for name, bit in BITS.items()}
+        pink = (colours & BITS["p"]) > 0
         found = []
-        for pink in self._segments(masks["p"]):
-            second = self._second_band(pink, masks)
+        for segment, window in self._segments(pink):
+            # Everything about one candidate happens inside the window where its bands and base can lie.
+            masks = {name: (colours[window] & bit) > 0 for name, bit in BITS.items()}
+            second = self._second_band(segment, masks)
             if second is None:
                 continue
             name, band, step = second
-            lower = band if step[1] > 0 else pink.mask
+            lower = band if step[1] > 0 else segment.mask
             if not self._white_below(lower, step, masks["w"]):
                 continue
-            upper_mask, lower_mask = (pink.mask, band) if step[1] > 0 else (band, pink.mask)
-            found.append(ColourDetection("p" + name if step[1] > 0 else name + "p", _centre(upper_mask),
-                                         _centre(lower_mask), upper_mask | lower_mask))
+            upper_mask, lower_mask = (segment.mask, band) if step[1] > 0 else (band, segment.mask)
+            origin = (window[1].start, window[0].start)
+            full = np.zeros(pink.shape, bool)
+            full[window] = upper_mask | lower_mask
+            found.append(ColourDetection("p" + name if step[1] > 0 else name + "p", _centre(upper_mask, origin),
+                                         _centre(lower_mask, origin), full))
         return found
 
-    def _segments(self, mask: np.ndarray) -> list[Segment]:
+    def _segments(self, mask: np.ndarray) -> list[tuple[Segment, tuple[slice, slice]]]:
+        """Pink segments, each in its own window (coordinates inside it): the segment's box grown by three band
+        lengths up and down (the other band and the white base) and by as much sideways (the probe's angles)."""
         count, labels, stats, centroids = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
-        return [Segment(labels == i, float(centroids[i][0]), float(centroids[i][1]), int(stats[i, 1]),
-                        int(stats[i, 1] + stats[i, 3] - 1)) for i in range(1, count)
-                if stats[i, cv2.CC_STAT_AREA] >= self.min_area_px]
+        out = []
+        for i in range(1, count):
+            x, y, w, h, area = (int(v) for v in stats[i])
+            if area < self.min_area_px:
+                continue
+            reach = 3 * h + 2
+            window = (slice(max(0, y - reach), min(mask.shape[0], y + h + reach)),
+                      slice(max(0, x - reach), min(mask.shape[1], x + w + reach)))
+            top, left = window[0].start, window[1].start
+            out.append((Segment(labels[window] == i, float(centroids[i][0]) - left, float(centroids[i][1]) - top,
+                                y - top, y + h - 1 - top), window))
+        return out
 
     def _probe(self, cx: float, cy: float, d: float, directions: tuple[int, ...], shape: tuple[int, int]):
         """Points at distance d from (cx, cy): down (+1) and/or up (-1), at growing angles either side."""
@@ -152,9 +168,10 @@ class ColourFilter:
         return bool((_shifted(band, down, height) & white).sum() >= 0.2 * band.sum())
 
 
-def _centre(mask: np.ndarray) -> tuple[float, float]:
+def _centre(mask: np.ndarray, origin: tuple[int, int] = (0, 0)) -> tuple[float, float]:
+    """Mean pixel position of a mask whose (0, 0) lies at ``origin`` (x, y) of the frame."""
     ys, xs = np.nonzero(mask)
-    return float(xs.mean()), float(ys.mean())
+    return float(xs.mean()) + origin[0], float(ys.mean()) + origin[1]
 
 
 def _shifted(mask: np.ndarray, direction: tuple[float, float], length: float) -> np.ndarray:

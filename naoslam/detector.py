@@ -7,8 +7,9 @@ width is not quantised to 4 px before the rotated box is measured.
 """
 from __future__ import annotations
 
+import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import cv2
@@ -194,13 +195,25 @@ class LandmarkDetector:
                              f"{len(self.info.classes)} classes (expected (1, {rows}, N) and (1, {MASK_DIM}, h, w)) - "
                              "export a *-seg model without NMS")
 
-    def letterbox(self, frame_hw: tuple[int, int]) -> Letterbox:
-        """The (cached) letterbox for frames of this size."""
-        if frame_hw not in self._letterboxes:
-            self._letterboxes[frame_hw] = Letterbox.fit(frame_hw, self.input_hw)
-        return self._letterboxes[frame_hw]
+    @property
+    def any_input_size(self) -> bool:
+        """True for a model exported with ``--dynamic``: it can run on a band of the frame."""
+        return not all(isinstance(side, int) for side in self.session.get_inputs()[0].shape[2:])
 
-    def prepare(self, frame: np.ndarray) -> tuple[np.ndarray, Letterbox]:
+    def letterbox(self, frame_hw: tuple[int, int], input_hw: tuple[int, int] | None = None) -> Letterbox:
+        """The (cached) letterbox for frames of this size (into ``input_hw``, default the model's)."""
+        key = (frame_hw, input_hw or self.input_hw)
+        if key not in self._letterboxes:
+            self._letterboxes[key] = Letterbox.fit(*key)
+        return self._letterboxes[key]
+
+    def band_input_hw(self, frame_hw: tuple[int, int], band_rows: int) -> tuple[int, int]:
+        """Input size for the lowest ``band_rows`` of a frame: the full frame's scale, height rounded up to 32."""
+        gain = min(self.input_hw[0] / frame_hw[0], self.input_hw[1] / frame_hw[1])
+        stride = self.info.stride
+        return int(math.ceil(band_rows * gain / stride) * stride), self.input_hw[1]
+
+    def prepare(self, frame: np.ndarray, input_hw: tuple[int, int] | None = None) -> tuple[np.ndarray, Letterbox]:
         """The network input tensor (1, 3, H, W) float32 RGB in 0..1 for a BGR (or grey) uint8 frame."""
         frame = np.asarray(frame)
         if frame.size == 0 or frame.ndim not in (2, 3):
@@ -209,7 +222,7 @@ class LandmarkDetector:
             frame = cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR)
         elif frame.shape[2] == 4:
             frame = cv2.cvtColor(frame, cv2.COLOR_BGRA2BGR)
-        box = self.letterbox(frame.shape[:2])
+        box = self.letterbox(frame.shape[:2], input_hw)
         blob = cv2.dnn.blobFromImage(box.apply(frame), 1.0 / 255.0, swapRB=True)
         return blob, box
 
@@ -217,19 +230,25 @@ class LandmarkDetector:
         """The bare network call: raw (1, 4+nc+32, N) predictions and (1, 32, h, w) prototypes."""
         return self.session.run(None, {self.input_name: blob})
 
-    def __call__(self, frame: np.ndarray, camera_pose: CameraPose | None = None) -> list[Detection]:
+    def __call__(self, frame: np.ndarray, camera_pose: CameraPose | None = None, crop: bool = True) -> list[Detection]:
         """Detections in one BGR frame, best first.
 
-        With the camera's ``camera_pose`` (height, pitch, roll; x, y and yaw unused) the ground-plane gate drops
-        detections that cannot be a pole standing on the floor; ``gate_rejections`` then holds (detection, reason)
-        for this frame and ``gate_rejected`` counts them over all frames.
+        With the camera's ``camera_pose`` (height, pitch, roll; x, y and yaw unused), the ground-plane gate drops
+        detections that cannot be a pole standing on the floor (``gate_rejections`` then holds (detection, reason)
+        for this frame, ``gate_rejected`` counts them over all frames), and a model exported with ``--dynamic``
+        runs only on the band below the horizon, where every pole must be (``crop=False``: the whole frame).
         """
-        blob, box = self.prepare(frame)
+        view = None if camera_pose is None else \
+            GroundView(PinholeCamera(frame.shape[1], frame.shape[0], self.hfov_deg), camera_pose)
+        top = view.band_top() if view is not None and crop and self.any_input_size else 0
+        band = frame[top:]
+        blob, box = self.prepare(band, self.band_input_hw(frame.shape[:2], band.shape[0]) if top else None)
         detections = self.decode(self.forward(blob), box)
+        if top:
+            detections = [_shifted(d, top) for d in detections]
         self.gate_rejections = []
-        if camera_pose is None:
+        if view is None:
             return detections
-        view = GroundView(PinholeCamera(frame.shape[1], frame.shape[0], self.hfov_deg), camera_pose)
         kept = []
         for detection in detections:
             reason = view.check(detection.mask, detection.mask_origin)
@@ -269,6 +288,16 @@ class LandmarkDetector:
         centre_column = mask_centre_column(mask, origin) if rotated else float((frame_box[0] + frame_box[2]) / 2)
         return Detection(class_id, self.info.classes[class_id], score, tuple(float(v) for v in frame_box), mask,
                          origin, rotated, centre_column)
+
+
+def _shifted(detection: Detection, rows: int) -> Detection:
+    """A detection found in a band that starts ``rows`` below the frame's top, in frame coordinates."""
+    x1, y1, x2, y2 = detection.box
+    rotated = detection.rotated_box
+    if rotated is not None:
+        rotated = replace(rotated, cy=rotated.cy + rows)
+    return replace(detection, box=(x1, y1 + rows, x2, y2 + rows),
+                   mask_origin=(detection.mask_origin[0], detection.mask_origin[1] + rows), rotated_box=rotated)
 
 
 def rotated_box_of_mask(mask: np.ndarray, origin: tuple[int, int] = (0, 0)) -> RotatedBox | None:

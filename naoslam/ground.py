@@ -22,6 +22,11 @@ from naoslam.landmarks import PoleGeometry
 HEIGHT_TOLERANCE = 0.35
 #: Rows a pole's top may reach above the horizon (pose error, mask bleed) before it counts as too tall.
 HORIZON_MARGIN_PX = 6.0
+#: Uncertainty of a mask's lowest row (px): a network's masks are upsampled from prototypes at a quarter of the
+#: input's resolution.
+FOOT_ROW_STD_PX = 2.0
+#: Rows above the horizon kept when the front end runs on the band below it (pose error, a pole's top near it).
+CROP_MARGIN_PX = 16
 #: Rows above the frame's bottom within which a mask counts as cut by it.
 BOTTOM_MARGIN_PX = 4
 #: Beyond this the foot's ray meets the floor too flat to trust (or the foot is a far wall's base).
@@ -70,6 +75,12 @@ class GroundView:
             return -math.inf
         return float(far[1] + (u - far[0]) * (side[1] - far[1]) / (side[0] - far[0]))
 
+    def band_top(self) -> int:
+        """The first frame row where a pole can appear: ``CROP_MARGIN_PX`` above the horizon's highest point
+        (a pole's top stays below the horizon), 0 when the horizon is above the frame."""
+        highest = min(self.horizon_row(0.0), self.horizon_row(float(self.camera.width)))
+        return int(np.clip(math.floor(highest - CROP_MARGIN_PX), 0, self.camera.height - 1))
+
     def reaches_bottom(self, mask: np.ndarray, origin: tuple[int, int] = (0, 0)) -> bool:
         """True when the mask comes within ``BOTTOM_MARGIN_PX`` of the frame's last row: the foot may lie below the
         frame (a network's mask, upsampled from its prototypes, can stop a few pixels short of the border)."""
@@ -110,8 +121,9 @@ class GroundView:
             return math.nan
         return float(bottom[1] - top[1])
 
-    def foot_range_std(self, foot: Foot, pixel_std: float = 1.0, pitch_std_rad: float = math.radians(0.5)) -> float:
-        """Standard deviation (m) of the foot-row range: one foot-row pixel and the pitch's uncertainty, through
+    def foot_range_std(self, foot: Foot, pixel_std: float = FOOT_ROW_STD_PX,
+                       pitch_std_rad: float = math.radians(0.5)) -> float:
+        """Standard deviation (m) of the foot-row range: the foot row's and the pitch's uncertainty, through
         d range / d angle = range^2 / height."""
         angle_std = math.hypot(pixel_std / self.camera.focal_px, pitch_std_rad)
         return foot.range_m ** 2 / self.pose.z * angle_std

@@ -1,19 +1,23 @@
-"""The camera's pose in the front end: foot-row range, the ground-plane gate, and their use in measurements."""
+"""The camera's pose in the front end: foot-row range, the ground-plane gate, the crop to the band below the horizon,
+and their use in measurements."""
 from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 import pytest
 
 from detector.synth.objects import WHITE, Cylinder, pole
 from detector.synth.render import render_scene
 from detector.synth.scene import Scene, _lighting, _room
+from detector.synth.walk import render_walk, walk_camera_poses
 from naoslam.camera import CameraPose, PinholeCamera
-from naoslam.detector import Detection, mask_centre_column, rotated_box_of_mask
+from naoslam.detector import Detection, LandmarkDetector, mask_centre_column, rotated_box_of_mask
 from naoslam.ground import GroundView
 from naoslam.landmarks import PoleGeometry
 from naoslam.measurement import MeasurementModel, PowerLaw, RangeCalibration
+from naoslam.sim import SimConfig, simulate
 
 CAMERA = PinholeCamera()
 POSE = CameraPose(z=0.5, pitch=math.radians(20), roll=math.radians(3))
@@ -90,3 +94,35 @@ def test_measurements_use_the_foot_row_and_distrust_a_hidden_foot():
     assert not measured.source.endswith("+foot")
     with pytest.raises(ValueError, match="image height"):
         model.measure([_detection(truth.mask)], CAMERA.width, POSE)
+
+
+def _bgr(frame) -> np.ndarray:
+    return cv2.cvtColor((frame.image * 255 + 0.5).astype(np.uint8), cv2.COLOR_RGB2BGR)
+
+
+def test_the_front_end_gates_a_pole_hanging_on_the_wall_and_its_crop_never_sees_it():
+    pose = CameraPose(z=0.5, pitch=math.radians(12))
+    hanging = pole("py", 2.5, 0.5, PoleGeometry())
+    hanging.base = hanging.base + [0.0, 0.0, 0.3]
+    image = _bgr(_rendered([pole("bp", 2.0, -0.4, PoleGeometry()), hanging], pose))
+    detector = LandmarkDetector()
+    assert sorted(d.name for d in detector(image)) == ["bp", "py"]
+    assert [d.name for d in detector(image, pose, crop=False)] == ["bp"]
+    assert [d.name for d, _ in detector.gate_rejections] == ["py"] and detector.gate_rejected == 1
+    assert [d.name for d in detector(image, pose)] == ["bp"]
+
+
+def test_the_band_below_the_horizon_gives_the_whole_frames_detections():
+    walk = simulate(SimConfig(seed=0, duration_s=6))
+    frames, poses = render_walk(walk, progress=False, workers=1), walk_camera_poses(walk)
+    detector = LandmarkDetector()
+    assert detector.any_input_size
+    compared = 0
+    for frame, pose in zip(frames, poses):
+        assert GroundView(CAMERA, pose).band_top() > 100  # the walk's head pitch: a third of the frame is skipped
+        band, whole = detector(frame, pose), detector(frame, pose, crop=False)
+        assert [d.name for d in band] == [d.name for d in whole]
+        for a, b in zip(band, whole):
+            assert np.abs(np.subtract(a.box, b.box)).max() < 5.0
+            compared += 1
+    assert compared >= 10

@@ -5,6 +5,7 @@ import json
 import os
 
 import cv2
+import numpy as np
 import onnx
 import pytest
 
@@ -14,6 +15,7 @@ from detector.training_curves import read_results
 from export.onnx_export import export_onnx, read_info
 from export.quantize import decode_head_nodes
 from export.run import ExportJob, ExportMismatch, run_export
+from naoslam.detector import LandmarkDetector
 from naoslam.landmarks import CLASSES
 
 
@@ -87,8 +89,13 @@ def test_decode_head_stays_float(tiny_onnx):
 
 
 def test_run_export_verifies_quantizes_and_reports(tiny_weights, synth_dataset, tmp_path):
-    job = ExportJob(tiny_weights, tmp_path / "m.onnx", (96, 128), synth_dataset, int8=True, conf=0.001)
+    job = ExportJob(tiny_weights, tmp_path / "m.onnx", (96, 128), synth_dataset, int8=True, conf=0.001, dynamic=True)
     report = run_export(job)
+    for model in (job.out, job.int8_path):  # --dynamic: both run on a band of any height
+        detector = LandmarkDetector(model)
+        assert detector.any_input_size and detector.input_hw == (96, 128)
+        outputs = detector.forward(detector.prepare(np.zeros((40, 128, 3), np.uint8), (64, 128))[0])
+        assert outputs[1].shape[2:] == (16, 32)
     assert report["fp32_problems"] == []
     fp32 = report["fp32_vs_pytorch"]
     assert fp32["matched"] == fp32["reference"] > 0 and fp32["box_iou_min"] > 0.99
