@@ -1,8 +1,9 @@
 """The on-robot budget: the shipped pole model per 640x480 frame, for each engine, precision, input (whole frame or the
 band below the horizon) and thread count, against Ultralytics' predict, in one run.
 
-Engines: onnxruntime (naoslam's), OpenVINO (Intel's runtime; the Nao's CPU is an Intel Atom) with an f32 precision
-hint on the FP32 model, on the shipped QDQ INT8 model, and on its own INT8 model quantised by NNCF. Every engine
+Engines: onnxruntime (naoslam's default) and OpenVINO (``LandmarkDetector(engine="openvino")``; Intel's runtime, and
+the Nao's CPU is an Intel Atom; f32 precision hint) on the shipped FP32 and QDQ INT8 models, and OpenVINO on its own
+INT8 model quantised by NNCF. Every engine
 feeds the same front end (``LandmarkDetector``'s preparation, decoding, masks and ground-plane gate), so the
 differences are the forward pass. Agreement: detections of each engine against onnxruntime FP32 on the same frames
 (count, classes, largest box corner difference). Reference: Ultralytics ``YOLO(best.pt).predict`` on the whole
@@ -32,27 +33,6 @@ def walk_frames(count: int):
     frames, poses = render_walk(walk, seed=3, progress=False), walk_camera_poses(walk, 3)
     picks = np.linspace(0, len(frames) - 1, count).round().astype(int)
     return [frames[i] for i in picks], [poses[i] for i in picks]
-
-
-class OpenVinoForward:
-    """A compiled OpenVINO model per input size, standing in for ``LandmarkDetector.forward``."""
-
-    def __init__(self, model, threads: int, f32: bool):
-        import openvino as ov
-
-        self.core, self.model, self.compiled = ov.Core(), model, {}
-        self.config = {"INFERENCE_NUM_THREADS": threads, "PERFORMANCE_HINT": "LATENCY"}
-        if f32:
-            self.config["INFERENCE_PRECISION_HINT"] = "f32"
-
-    def __call__(self, blob: np.ndarray) -> list[np.ndarray]:
-        shape = blob.shape
-        if shape not in self.compiled:
-            model = self.model.clone()
-            model.reshape({model.inputs[0].any_name: list(shape)})
-            self.compiled[shape] = self.core.compile_model(model, "CPU", self.config)
-        result = self.compiled[shape](blob)
-        return [result[0], result[1]]
 
 
 def nncf_int8(fp32: Path, blobs: list[np.ndarray]):
@@ -100,6 +80,7 @@ def main(count: int, repeats: int) -> None:
     from naoslam.camera import PinholeCamera
     from naoslam.colour_filter import ColourFilter
     from naoslam.detector import LandmarkDetector
+    from naoslam.engines import OpenVinoForward
     from naoslam.ground import GroundView
     from naoslam.shipped import shipped_path
 
@@ -126,12 +107,10 @@ def main(count: int, repeats: int) -> None:
             for precision, path in (("FP32", fp32), ("INT8 (QDQ)", int8), ("INT8 (NNCF)", None)):
                 if engine == "onnxruntime" and path is None:
                     continue
-                detector = LandmarkDetector(path or fp32, threads=threads)
-                if engine == "OpenVINO":
-                    import openvino as ov
-
-                    model = nncf_model if path is None else ov.Core().read_model(str(path))
-                    detector.forward = OpenVinoForward(model, threads, f32=precision == "FP32")
+                detector = LandmarkDetector(path or fp32, threads=threads,
+                                            engine="openvino" if engine == "OpenVINO" else "onnxruntime")
+                if path is None:  # NNCF's model exists only in memory: put it behind the same engine
+                    detector._openvino = OpenVinoForward(nncf_model, threads)
                 for crop in (False, True):
                     ms = timed(lambda f, p: detector(f, p, crop=crop), frames, poses, repeats)
                     found = [detector(f, p, crop=crop) for f, p in zip(frames, poses)]

@@ -17,6 +17,7 @@ import numpy as np
 import onnxruntime as ort
 
 from naoslam.camera import NAO_HFOV_DEG, CameraPose, PinholeCamera
+from naoslam.engines import ENGINES, OpenVinoForward
 from naoslam.ground import GroundView
 from naoslam.landmarks import CLASSES
 from naoslam.measurement import RangeCalibration
@@ -147,7 +148,10 @@ class LandmarkDetector:
     """
 
     def __init__(self, model: Path | str | None = None, conf: float | None = None, iou: float = 0.7,
-                 max_det: int = 300, classes: tuple[str, ...] | None = CLASSES, threads: int | None = None):
+                 max_det: int = 300, classes: tuple[str, ...] | None = CLASSES, threads: int | None = None,
+                 engine: str = "onnxruntime"):
+        if engine not in ENGINES:
+            raise ValueError(f"engine {engine!r} is not one of {', '.join(ENGINES)}")
         self.path = resolve_model(model) if model is not None else shipped_model()
         self.session = load_session(self.path, threads)
         self.info = ModelInfo.from_metadata(self.session.get_modelmeta().custom_metadata_map, self.path)
@@ -158,6 +162,8 @@ class LandmarkDetector:
         self.conf = (self.stored_conf or DEFAULT_CONF) if conf is None else conf
         self.iou, self.max_det = iou, max_det
         self.input_name = self.session.get_inputs()[0].name
+        self.engine = engine
+        self._openvino = OpenVinoForward(self.path, threads) if engine == "openvino" else None
         self._letterboxes: dict[tuple[int, int], Letterbox] = {}
         self.gate_rejections: list[tuple[Detection, str]] = []
         self.gate_rejected = 0
@@ -228,6 +234,8 @@ class LandmarkDetector:
 
     def forward(self, blob: np.ndarray) -> list[np.ndarray]:
         """The bare network call: raw (1, 4+nc+32, N) predictions and (1, 32, h, w) prototypes."""
+        if self._openvino is not None:
+            return self._openvino(blob)
         return self.session.run(None, {self.input_name: blob})
 
     def __call__(self, frame: np.ndarray, camera_pose: CameraPose | None = None, crop: bool = True) -> list[Detection]:

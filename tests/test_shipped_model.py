@@ -17,6 +17,7 @@ from detector.synth.scene import calibration_scene
 from detector.training import SHIPPED_WEIGHTS, TrainSettings, train_model
 from export.ship import SIZE_BUDGET
 from naoslam.camera import PinholeCamera
+from naoslam.detector import LandmarkDetector
 from naoslam.shipped import OPERATING_CONF_KEY, shipped_model
 
 
@@ -99,3 +100,28 @@ def test_evaluate_uses_the_shipped_model_at_its_threshold(synth_dataset, tmp_pat
     assert metrics["model"] == shipped_model().name
     assert math.isclose(metrics["conf"], LandmarkDetector().conf)
     assert metrics["tp"] > 0
+
+
+def test_openvino_engine_gives_onnxruntimes_answers_on_the_whole_frame_and_the_band():
+    pytest.importorskip("openvino")
+    from detector.synth.walk import render_walk, walk_camera_poses
+    from naoslam.sim import SimConfig, simulate
+
+    walk = simulate(SimConfig(seed=1, duration_s=4))
+    frames, poses = render_walk(walk, progress=False, workers=1), walk_camera_poses(walk)
+    for model, tolerance_px in (("shipped", 0.5), ("shipped-int8", 4.0)):  # INT8 kernels round differently
+        reference, openvino = LandmarkDetector(model), LandmarkDetector(model, engine="openvino")
+        compared = 0
+        for frame, pose in zip(frames, poses):
+            for camera_pose in (None, pose):
+                a, b = reference(frame, camera_pose), openvino(frame, camera_pose)
+                assert [d.name for d in a] == [d.name for d in b]
+                for x, y in zip(a, b):
+                    assert np.abs(np.subtract(x.box, y.box)).max() < tolerance_px
+                    compared += 1
+        assert compared >= 10
+
+
+def test_an_unknown_engine_is_refused():
+    with pytest.raises(ValueError, match="engine 'tensorrt'"):
+        LandmarkDetector(engine="tensorrt")

@@ -68,3 +68,16 @@ def test_a_recording_with_a_bad_odometry_line_is_named(tmp_path):
     calibration = RangeCalibration(PowerLaw(50, -1), PowerLaw(220, -1), colour_law=PowerLaw(6.2, -1.0, 0.03))
     with pytest.raises(ValueError, match=r"odometry.csv:3: not finite numbers"):
         recorded_sequence(frames, odometry, FrontEnd("colour-filter", calibration), 0.3)
+
+
+def test_a_recording_hands_each_frame_the_camera_pose_of_the_nearest_odometry_row(tmp_path, monkeypatch):
+    frames, odometry = _recording(tmp_path)
+    odometry.write_text("t,x,y,theta,camera_height,camera_pitch,camera_roll\n0.0,0,0,0,0.50,0.10,0.00\n"
+                        "0.4,0.05,0,0,0.51,0.12,0.01\n0.8,0.1,0,0.02,0.52,0.14,0.02\n1.2,0.15,0,0.04,0.53,0.16,0.03\n")
+    seen = []
+    monkeypatch.setattr(FrontEnd, "measurer", lambda self: lambda frame, pose=None: seen.append(pose) or [])
+    recorded_sequence(frames, odometry, FrontEnd("shipped"), time_offset_s=0.3)
+    assert [(p.z, p.pitch, p.roll) for p in seen] == [(0.51, 0.12, 0.01), (0.52, 0.14, 0.02), (0.53, 0.16, 0.03)]
+    seen.clear()
+    recorded_sequence(frames, odometry, FrontEnd("shipped"), time_offset_s=0.3, camera_pose=False)
+    assert seen == [None, None, None]
