@@ -11,6 +11,7 @@ from tqdm import tqdm
 from detector.datasets.intake import open_dataset
 from detector.datasets.polygons import polygon_to_mask
 from detector.datasets.truth import load_truth
+from detector.matching import mask_iou
 from naoslam.camera import NAO_HFOV_DEG, CameraPose, PinholeCamera
 from naoslam.detector import LandmarkDetector, mask_centre_column, rotated_box_of_mask
 from naoslam.ground import GroundView
@@ -85,16 +86,12 @@ MATCH_IOU = 0.5
 
 def _matching_detection(detections, cls: str, label_mask: np.ndarray):
     """The detection of class ``cls`` whose mask overlaps the labelled pole's most (IoU >= ``MATCH_IOU``), or None."""
-    best, best_iou = None, MATCH_IOU
-    for detection in detections:
-        if detection.name != cls:
-            continue
-        mask = detection.full_mask(label_mask.shape)
-        union = np.logical_or(mask, label_mask).sum()
-        iou = np.logical_and(mask, label_mask).sum() / union if union else 0.0
-        if iou >= best_iou:
-            best, best_iou = detection, iou
-    return best
+    same = [d for d in detections if d.name == cls]
+    if not same:
+        return None
+    overlap = mask_iou([d.full_mask(label_mask.shape) for d in same], [label_mask])[:, 0]
+    best = int(np.argmax(overlap))
+    return same[best] if overlap[best] >= MATCH_IOU else None
 
 
 def _foot(camera: dict | None, mask: np.ndarray | None, origin: tuple[int, int], width: int, height: int,

@@ -178,9 +178,9 @@ class EkfSlam:
         for m in measurements:
             z = np.array([m.range_m, m.bearing_rad])
             q = observation.noise(m.range_std, m.bearing_std)
-            landmark, verdict = self._associate(m.signature, z, q, used)
+            landmark, verdict, linearised = self._associate(m.signature, z, q, used)
             if landmark is not None:
-                nis = self._correct(landmark, z, q)
+                nis = self._correct(linearised)
                 if nis is None:
                     log.rejected.append(m.signature)
                     continue
@@ -199,16 +199,19 @@ class EkfSlam:
                     log.initialised.append(m.signature)
         return log
 
-    def _associate(self, detected: str, z: np.ndarray, q: np.ndarray, used: set[str]) -> tuple[str | None, str]:
+    def _associate(self, detected: str, z: np.ndarray, q: np.ndarray, used: set[str]):
+        """(landmark, verdict, its linearisation) for one detection; landmark and linearisation None when none fits."""
         if self.config.association == "class":
-            return (detected, "match") if detected in self.slots and detected not in used else (None, "new")
-        gate = self.config.gate or observation.CHI2_2DOF_99
-        hypotheses = []
+            if detected in self.slots and detected not in used:
+                return detected, "match", self._linearise(detected, z, q)
+            return None, "new", None
+        linearised, hypotheses = {}, []
         for landmark in self.slots:
             if landmark not in used:
-                nu, s, _, _ = self._linearise(landmark, z, q)
+                linearised[landmark] = nu, s, *_ = self._linearise(landmark, z, q)
                 hypotheses.append(Hypothesis(landmark, self.label_of(landmark), float(nu @ np.linalg.solve(s, nu))))
-        return choose(hypotheses, detected, gate)
+        landmark, verdict = choose(hypotheses, detected, self.config.gate or observation.CHI2_2DOF_99)
+        return landmark, verdict, linearised.get(landmark)
 
     def _seen_enough(self, detected: str, z: np.ndarray, q: np.ndarray) -> str | None:
         """Delayed initialisation: the class to map when this sighting completes a candidate, else None."""
@@ -237,7 +240,7 @@ class EkfSlam:
         return landmark
 
     def _linearise(self, landmark: str, z: np.ndarray, q: np.ndarray):
-        """Innovation, its covariance S, the Jacobian H over (pose, landmark) and those state indices."""
+        """Innovation, its covariance S, the Jacobian H over (pose, landmark), those state indices, and Q."""
         j = self.slots[landmark]
         estimate = self.mu[j:j + 2]
         nu = observation.innovation(z, observation.expected(self.pose, estimate))
@@ -247,11 +250,12 @@ class EkfSlam:
             h = _observable_part(h, self._previous_predicted, self.first_estimates[landmark])
         idx = np.r_[0:3, j:j + 2]
         s = h @ self.sigma[np.ix_(idx, idx)] @ h.T + q
-        return nu, s, h, idx
+        return nu, s, h, idx, q
 
-    def _correct(self, landmark: str, z: np.ndarray, q: np.ndarray) -> float | None:
-        """Joseph-form update; the NIS when accepted, None when the outlier filter or the gate rejects it."""
-        nu, s, h, idx = self._linearise(landmark, z, q)
+    def _correct(self, linearised) -> float | None:
+        """Joseph-form update from a landmark's linearisation (:meth:`_linearise`); the NIS when accepted, None when
+        the outlier filter or the gate rejects it."""
+        nu, s, h, idx, q = linearised
         if self.config.outlier_filter and (abs(nu[0]) > OUTLIER_RANGE_M or abs(nu[1]) > OUTLIER_BEARING_RAD):
             return None
         nis = float(nu @ np.linalg.solve(s, nu))

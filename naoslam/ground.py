@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -50,7 +51,7 @@ class GroundView:
     pose: CameraPose
     pole: PoleGeometry = PoleGeometry()
 
-    @property
+    @cached_property
     def _rotation(self) -> np.ndarray:
         return CameraPose(0.0, 0.0, self.pose.z, 0.0, self.pose.pitch, self.pose.roll).world_from_camera()
 
