@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 from augment.config import OPERATIONS, AugmentConfig
+from detector.synth.scene import SceneConfig
 from detector.errors import run_command
 
 
@@ -55,6 +56,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="folder of real robot-camera frames without poles: draw the poles over them")
     synth.add_argument("--backdrop-share", type=float, default=1.0,
                        help="with --backgrounds, the fraction of frames drawn over them (default 1; the rest ray-cast)")
+    synth.add_argument("--nominal-paint-share", type=float, default=SceneConfig.nominal_paint_share,
+                       help="share of frames whose poles keep the nominal paint; the rest vary hue, saturation and "
+                            f"value per band (default {SceneConfig.nominal_paint_share})")
     synth.add_argument("--preview", action="store_true", help="also write preview.png, a contact sheet with labels drawn")
     synth.add_argument("--workers", type=int, default=None, help="render processes (default: every core)")
     synth.add_argument("--force", action="store_true", help="replace --out if it exists")
@@ -282,7 +286,8 @@ def _synth(args: argparse.Namespace) -> int:
         raise ValueError("--images must be at least 1")
     backgrounds = scan_backdrops(args.backgrounds) if args.backgrounds is not None else ()
     job = SynthJob(args.images, args.seed, *args.size, hfov_deg=args.hfov, calibration_shots=args.calibration_shots,
-                   backgrounds=backgrounds, backdrop_share=args.backdrop_share)
+                   backgrounds=backgrounds, backdrop_share=args.backdrop_share,
+                   config=SceneConfig(nominal_paint_share=args.nominal_paint_share))
     out = generate_dataset(args.out, job, workers=args.workers, preview=args.preview, force=args.force)
     print(f"wrote {args.images} images to {out}")
     return 0

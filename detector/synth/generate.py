@@ -14,6 +14,7 @@ from detector.datasets.polygons import mask_to_polygon
 from detector.parallel import default_workers, ordered_map
 from detector.preview import contact_sheet, draw_instances
 from detector.synth.backdrops import load_backdrop, sample_look
+from detector.synth.floor import floor_of
 from detector.synth.effects import apply_camera_effects, camera_effects
 from detector.synth.render import render_scene
 from detector.synth.scene import SceneConfig, calibration_scene, sample_scene
@@ -92,8 +93,9 @@ def render_one(job: SynthJob, index: int) -> RenderedSample:
     if backdrop_path is not None:
         backdrop = load_backdrop(backdrop_path)
         camera = PinholeCamera(backdrop.shape[1], backdrop.shape[0], job.hfov_deg)
-        scene = sample_scene(rng, camera, job.config, goal_posts_in_view=False)
-        frame = render_scene(scene, job.config.pole, backdrop=backdrop, look=sample_look(rng, backdrop))
+        floor = floor_of(backdrop_path)
+        scene = sample_scene(rng, camera, job.config, goal_posts_in_view=False, floor=floor)
+        frame = render_scene(scene, job.config.pole, backdrop=backdrop, look=sample_look(rng, backdrop), floor=floor)
     elif job.calibration_shots:
         # Ranges vary fastest, so any number of shots covers every distance.
         range_m = CALIBRATION_RANGES_M[index % len(CALIBRATION_RANGES_M)]

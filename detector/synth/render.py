@@ -8,7 +8,8 @@ import numpy as np
 
 from detector.synth.backdrops import Look, composite
 from detector.synth.background import render_background
-from detector.synth.objects import Quad
+from detector.synth.floor import FloorMap
+from detector.synth.objects import Cylinder, Quad
 from detector.synth.raycast import Hit, cast_cylinder, cast_quad, world_rays
 from detector.synth.scene import Scene
 from naoslam.landmarks import PoleGeometry
@@ -38,11 +39,12 @@ class Frame:
 
 
 def render_scene(scene: Scene, geometry: PoleGeometry = PoleGeometry(), backdrop: np.ndarray | None = None,
-                 look: Look | None = None) -> Frame:
+                 look: Look | None = None, floor: FloorMap | None = None) -> Frame:
     """Ray-cast the background, every quad and cylinder with a depth test; masks are what stays visible.
 
     With a ``backdrop`` (a real frame of the camera's size, RGB 0..1) the objects are drawn over it in ``look``
-    instead of over the modelled room; the masks are the same either way.
+    instead of over the modelled room. With its ``floor`` as well, whatever the frame shows standing nearer than an
+    object hides that object (and leaves its mask); without it the masks do not depend on the frame.
     """
     cam, pose = scene.camera, scene.pose
     if backdrop is None:
@@ -57,6 +59,8 @@ def render_scene(scene: Scene, geometry: PoleGeometry = PoleGeometry(), backdrop
         hit = cast_quad(obj, pose, cam, scene.lighting) if isinstance(obj, Quad) else cast_cylinder(obj, pose, cam, scene.lighting)
         if hit is not None:
             _composite(hit, index, colour, depth, owner)
+    if floor is not None:
+        _hide_behind_frame_content(scene, objects, floor, owner)
     poles = []
     for index, cylinder in enumerate(objects):
         if isinstance(cylinder, Quad) or cylinder.label is None:
@@ -86,6 +90,20 @@ def _composite(hit: Hit, index: int, colour: np.ndarray, depth: np.ndarray, owne
     colour[region][nearer] = hit.colour[nearer]
     depth[region][nearer] = hit.depth[nearer]
     owner[region][nearer] = index
+
+
+def _hide_behind_frame_content(scene: Scene, objects: list, floor: FloorMap, owner: np.ndarray) -> None:
+    """Give back to the frame every object pixel that the frame shows standing nearer than the object's foot."""
+    for index, obj in enumerate(objects):
+        shown = owner == index
+        if not shown.any():
+            continue
+        foot = obj.base if isinstance(obj, Cylinder) else obj.centre
+        point = scene.pose.to_camera(np.array([foot[0], foot[1], 0.0]))
+        if point[2] <= 1e-6:
+            continue
+        foot_row = float(scene.camera.project(point)[1])
+        owner[shown & floor.in_front_of(foot_row)] = -1
 
 
 def _in_image_area(hit: Hit | None, width: int, height: int) -> int:

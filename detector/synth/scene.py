@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from detector.synth.background import Room, WallFeature
+from detector.synth.floor import FloorMap, pitch_range_deg
 from detector.synth.objects import (BAND_RGB, PINK, WHITE, YELLOW, Cylinder, Quad, horizontal_rotation, pole,
                                     tilt_rotation)
 from detector.synth.raycast import Lighting
@@ -36,6 +37,13 @@ class SceneConfig:
     paint_hue_sd: float = 0.025
     paint_saturation: tuple[float, float] = (0.55, 1.1)
     paint_value: tuple[float, float] = (0.45, 1.05)
+    #: Share of scenes whose poles keep the nominal paint (the rest vary it): fresh prints and the look a model
+    #: already knows stay as common as worn, dull or off-hue ones.
+    nominal_paint_share: float = 0.5
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.nominal_paint_share <= 1.0:
+            raise ValueError(f"--nominal-paint-share {self.nominal_paint_share} must lie between 0 and 1")
 
 
 @dataclass
@@ -54,28 +62,34 @@ class Scene:
 
 
 def sample_scene(rng: np.random.Generator, camera: PinholeCamera, config: SceneConfig = SceneConfig(),
-                 goal_posts_in_view: bool = True) -> Scene:
+                 goal_posts_in_view: bool = True, floor: FloorMap | None = None) -> Scene:
     """A random field scene with 0..max_poles landmarks in or near the view and some distractors.
 
-    ``goal_posts_in_view=False`` leaves the field's goals out (a real backdrop has its own).
+    ``goal_posts_in_view=False`` leaves the field's goals out (a real backdrop has its own). With the ``floor`` of
+    a real backdrop the camera's pitch keeps the horizon above that floor and every object's foot stands on it.
     """
-    pose = CameraPose(x=rng.uniform(-4.5, 4.5), y=rng.uniform(-3.0, 3.0), z=rng.uniform(*config.camera_height),
-                      yaw=rng.uniform(-math.pi, math.pi), pitch=math.radians(rng.uniform(*config.pitch_deg)),
+    x, y, height, yaw = rng.uniform(-4.5, 4.5), rng.uniform(-3.0, 3.0), rng.uniform(*config.camera_height), \
+        rng.uniform(-math.pi, math.pi)
+    pitch_deg = config.pitch_deg if floor is None else \
+        pitch_range_deg(floor, camera.focal_px, camera.cy, height, config.pitch_deg)
+    pose = CameraPose(x=x, y=y, z=height, yaw=yaw, pitch=math.radians(rng.uniform(*pitch_deg)),
                       roll=math.radians(rng.normal(0.0, config.max_roll_deg / 2.5)))
     scene = Scene(camera, pose, _lighting(rng), _room(rng), effects_seed=int(rng.integers(2**31)),
                   jpeg_quality=int(rng.integers(60, 96)))
     occupied: list[tuple[float, float]] = []
     n_poles = 0 if rng.random() < config.p_no_pole else int(rng.integers(1, config.max_poles + 1))
+    vary_paint = rng.random() >= config.nominal_paint_share
     for _ in range(n_poles):
-        spot = _free_spot(rng, pose, camera, config, occupied)
+        spot = _free_spot(rng, pose, camera, config, occupied, floor)
         if spot is None:
             continue
         lean = None
         if rng.random() < config.p_lean:
             lean = tilt_rotation(math.radians(rng.uniform(2, config.max_lean_deg)), rng.uniform(-math.pi, math.pi))
-        scene.cylinders.append(pole(str(rng.choice(CLASSES)), *spot, config.pole, lean, paint=_paint(rng, config)))
+        scene.cylinders.append(pole(str(rng.choice(CLASSES)), *spot, config.pole, lean,
+                                   paint=_paint(rng, config) if vary_paint else BAND_RGB))
     for _ in range(int(rng.integers(0, config.max_distractors + 1))):
-        spot = _free_spot(rng, pose, camera, config, occupied)
+        spot = _free_spot(rng, pose, camera, config, occupied, floor)
         if spot is not None:
             _add_distractor(rng, scene, spot, pose)
     if goal_posts_in_view:
@@ -104,17 +118,29 @@ def goal_posts(f: FieldGeometry) -> list[Cylinder]:
     return posts + bars
 
 
-def _free_spot(rng, pose: CameraPose, camera: PinholeCamera, config: SceneConfig, occupied: list) -> tuple[float, float] | None:
+def _free_spot(rng, pose: CameraPose, camera: PinholeCamera, config: SceneConfig, occupied: list,
+               floor: FloorMap | None = None) -> tuple[float, float] | None:
     half_view = camera.hfov_deg / 2 + config.view_margin_deg
     low, high = np.log(config.range_m)
     for _ in range(20):
         distance = float(np.exp(rng.uniform(low, high)))
         bearing = pose.yaw + math.radians(rng.uniform(-half_view, half_view))
         x, y = pose.x + distance * math.cos(bearing), pose.y + distance * math.sin(bearing)
+        if floor is not None and not floor.stands_at(*foot_pixel(pose, camera, x, y)):
+            continue
         if all(math.hypot(x - ox, y - oy) > 0.3 for ox, oy in occupied):
             occupied.append((x, y))
             return x, y
     return None
+
+
+def foot_pixel(pose: CameraPose, camera: PinholeCamera, x: float, y: float) -> tuple[float, float]:
+    """Where the ground point (x, y) appears in the image (u, v); behind the camera counts as below the frame."""
+    point = pose.to_camera(np.array([x, y, 0.0]))
+    if point[2] <= 1e-6:
+        return camera.cx, math.inf
+    u, v = camera.project(point)
+    return float(u), float(v)
 
 
 def venue(rng: np.random.Generator) -> tuple[Lighting, Room]:
