@@ -1,9 +1,11 @@
-"""Training throughput on a busy CPU: plain Ultralytics, `poles train` with a fixed thread count, and with the thread
-tuner, each idle, beside one single-threaded CPU hog, and beside a multi-threaded load, in one run.
+"""Training throughput on a busy CPU: plain Ultralytics against `poles train` on every core with OpenMP's default
+wait, with a passive wait, with a short spin, and with the thread tuner, each idle, beside one single-threaded CPU
+hog, and beside a multi-threaded load, in one run.
 
 Each measurement trains YOLOv8n-seg at 320 px, batch 16, in its own process for SECONDS seconds after the first
 batch and reports images/s; the load runs at the same priority. Ratios are against plain Ultralytics under the same
-load. Usage: python benchmarks/bench_busy_train.py [SECONDS]
+load. libgomp (torch's OpenMP) reads its wait settings once, when torch loads, so each variant's environment is set
+before its process starts. Usage: python benchmarks/bench_busy_train.py [SECONDS] [VARIANT ...]
 """
 from __future__ import annotations
 
@@ -18,7 +20,14 @@ from pathlib import Path
 os.environ.setdefault("YOLO_OFFLINE", "true")
 
 BATCH, IMGSZ = 16, 320
-VARIANTS = ("plain yolo", "poles: all cores", "poles: tuner")
+#: Variant name: extra environment of its process.
+VARIANTS = {
+    "plain yolo": {},
+    "poles: all cores": {"GOMP_SPINCOUNT": "300000"},  # libgomp's own default, whatever `poles` sets
+    "poles: passive wait": {"OMP_WAIT_POLICY": "PASSIVE"},
+    "poles: short spin": {"GOMP_SPINCOUNT": "10000"},
+    "poles: tuner": {},
+}
 HOG = "while True: pass"
 MATMUL = ("import os; os.environ['OMP_NUM_THREADS'] = '2'; import numpy as np; a = np.random.rand(600, 600)\n"
           "while True: a = a @ a; a /= np.abs(a).max()")
@@ -62,7 +71,7 @@ def one_run(variant: str, data: str, seconds: float) -> None:
     print(json.dumps({"images_per_s": rate, "threads": torch.get_num_threads()}))
 
 
-def main(seconds: float = 60.0) -> None:
+def main(seconds: float = 60.0, variants: tuple[str, ...] = tuple(VARIANTS)) -> None:
     from detector.synth.generate import SynthJob, generate_dataset
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -73,9 +82,10 @@ def main(seconds: float = 60.0) -> None:
             hogs = [subprocess.Popen([sys.executable, "-c", script]) for script in scripts]
             try:
                 rates = {}
-                for variant in VARIANTS:
+                for variant in ("plain yolo", *(v for v in variants if v != "plain yolo")):
                     out = subprocess.run([sys.executable, __file__, "--one", variant, str(data / "data.yaml"),
-                                          str(seconds)], capture_output=True, text=True, check=True)
+                                          str(seconds)], capture_output=True, text=True, check=True,
+                                         env={**os.environ, **VARIANTS[variant]})
                     rates[variant] = json.loads(out.stdout.strip().splitlines()[-1])
             finally:
                 for hog in hogs:
@@ -90,4 +100,4 @@ if __name__ == "__main__":
     if len(sys.argv) > 1 and sys.argv[1] == "--one":
         one_run(sys.argv[2], sys.argv[3], float(sys.argv[4]))
     else:
-        main(float(sys.argv[1]) if len(sys.argv) > 1 else 60.0)
+        main(float(sys.argv[1]) if len(sys.argv) > 1 else 60.0, tuple(sys.argv[2:]) or tuple(VARIANTS))

@@ -48,6 +48,7 @@ def test_the_cabinet_hides_what_stands_behind_it_and_nothing_in_front():
 def test_feet_stand_on_the_floor_and_the_horizon_stays_above_it():
     floor = read_floor(_room_frame())
     assert floor.stands_at(100, 300) and floor.stands_at(100, 900) and not floor.stands_at(100, 120)
+    assert floor.stands_at(290, 300) and not floor.stands_at(290, 150)  # behind the cabinet, but not past the wall
     assert not floor.stands_at(-50, 120) and floor.stands_at(-50, 300)  # beside the frame: the edge column's floor
     camera = PinholeCamera(WIDTH, HEIGHT)
     low, high = pitch_range_deg(floor, camera.focal_px, camera.cy, 0.5, SceneConfig().pitch_deg)

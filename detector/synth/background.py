@@ -1,7 +1,13 @@
-"""The world behind the objects: the carpet with the SPL field lines, the floor, the room's walls and ceiling."""
+"""The world behind the objects: the carpet with the SPL field lines, the floor, the room's walls and ceiling.
+
+Surfaces are not flat colours: the carpet has a pile and walls and floor a texture, from grey photographs that
+scikit-image ships (brick, gravel, grass; nothing is downloaded), laid in world coordinates so they shrink with
+distance and follow the perspective.
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
@@ -41,6 +47,39 @@ class Room:
     ceiling_rgb: RGB
     line_rgb: RGB = (0.92, 0.93, 0.92)
     features: list[WallFeature] = field(default_factory=list)
+    #: Texture photo per wall (a name of ``surface_photos``, None: plain paint), its tile size (m) and strength.
+    wall_texture: tuple[str | None, str | None, str | None, str | None] = (None, None, None, None)
+    floor_texture: str | None = None
+    texture_tile_m: float = 1.0
+    texture_strength: float = 0.0
+    #: Strength of the carpet's pile (the grass photo, tiled every 0.5 m).
+    carpet_pile: float = 0.0
+
+
+#: Tile size of the carpet's pile (m).
+PILE_TILE_M = 0.5
+
+
+@lru_cache(maxsize=1)
+def surface_photos() -> dict[str, np.ndarray]:
+    """scikit-image's grey texture photos, each scaled to mean 1 (multiplies a surface's colour)."""
+    import skimage.data
+
+    photos = {name: getattr(skimage.data, name)().astype(np.float32) for name in ("brick", "gravel", "grass")}
+    return {name: photo / photo.mean() for name, photo in photos.items()}
+
+
+def texture_gain(name: str, u: np.ndarray, v: np.ndarray, tile_m: float, strength: float) -> np.ndarray:
+    """The photo ``name`` tiled every ``tile_m`` metres over surface coordinates (u, v), bilinear, as a brightness
+    gain around 1 whose contrast is ``strength`` times the photo's."""
+    photo = surface_photos()[name]
+    size = photo.shape[0]
+    x, y = np.mod(u / tile_m * size, size), np.mod(v / tile_m * size, size)
+    x0, y0 = x.astype(np.int64) % size, y.astype(np.int64) % size
+    fx, fy = (x - np.floor(x)).astype(np.float32), (y - np.floor(y)).astype(np.float32)
+    x1, y1 = (x0 + 1) % size, (y0 + 1) % size
+    value = (photo[y0, x0] * (1 - fx) + photo[y0, x1] * fx) * (1 - fy) + (photo[y1, x0] * (1 - fx) + photo[y1, x1] * fx) * fy
+    return 1.0 + strength * (value - 1.0)
 
 
 def field_line_mask(x: np.ndarray, y: np.ndarray, f: FieldGeometry) -> np.ndarray:
@@ -88,6 +127,11 @@ def _paint_ground(colour, ground, origin, rays, t, room: Room, lighting: Lightin
     gy = origin[1] + t[ground] * rays[..., 1][ground]
     on_carpet = (np.abs(gx) <= geometry.length / 2 + geometry.border) & (np.abs(gy) <= geometry.width / 2 + geometry.border)
     texture = 1.0 + 0.05 * np.sin(gx * 7.3 + np.sin(gy * 3.1)) * np.sin(gy * 5.7 + 1.3)
+    if room.carpet_pile > 0:
+        texture = np.where(on_carpet, texture * texture_gain("grass", gx, gy, PILE_TILE_M, room.carpet_pile), texture)
+    if room.floor_texture is not None:
+        floor_gain = texture_gain(room.floor_texture, gx, gy, room.texture_tile_m, room.texture_strength)
+        texture = np.where(on_carpet, texture, texture * floor_gain)
     rgb = np.where(on_carpet[:, None], np.array(room.carpet_rgb, np.float32), np.array(room.floor_rgb, np.float32))
     rgb = np.where(field_line_mask(gx, gy, geometry)[:, None], np.array(room.line_rgb, np.float32), rgb)
     brightness = lighting.ambient + lighting.diffuse * max(float(lighting.direction[2]), 0.0)
@@ -102,6 +146,11 @@ def _paint_walls(colour, on_wall, wall, origin, rays, t, z, room: Room, lighting
     normals = np.array([[-1, 0, 0], [1, 0, 0], [0, -1, 0], [0, 1, 0]], np.float32)
     brightness = lighting.ambient + lighting.diffuse * 0.6 * np.clip(normals @ lighting.direction, 0, None)
     shade = np.asarray(brightness, np.float32)[w]
+    for index, name in enumerate(room.wall_texture):
+        textured = w == index
+        if name is not None and textured.any():
+            shade[textured] *= texture_gain(name, along[textured], height[textured], room.texture_tile_m,
+                                            room.texture_strength)
     for feature in room.features:
         inside = (w == feature.wall) & (along >= feature.u0) & (along <= feature.u1) & (height >= feature.z0) & (height <= feature.z1)
         rgb[inside] = feature.rgb

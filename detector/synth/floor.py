@@ -51,12 +51,15 @@ class FloorMap:
         return self.floor.shape[0]
 
     def stands_at(self, u: float, v: float) -> bool:
-        """Whether a foot at pixel (u, v) can stand there: below the frame, or on the floor's visible part (beside
-        the frame: the edge column's)."""
+        """Whether a foot at pixel (u, v) can stand there: below the frame, on the floor's visible part (beside the
+        frame: the edge column's), or hidden behind something standing nearer but still below the floor's far edge."""
         if v >= self.height:
             return True
         column = min(max(int(round(u)), 0), self.floor.shape[1] - 1)
-        return v >= self.floor_top[column] - FRONT_MARGIN_PX
+        if v >= self.floor_top[column] - FRONT_MARGIN_PX:
+            return True
+        row = int(v)
+        return self.far_edge <= row and bool(self.front[row, column]) and self.front_foot[column] > v + FRONT_MARGIN_PX
 
     def in_front_of(self, foot_row: float) -> np.ndarray:
         """Pixels of the frame that stand nearer than an object whose foot lies at ``foot_row``."""

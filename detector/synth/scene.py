@@ -200,6 +200,12 @@ def _room(rng) -> Room:
                 colour = PINK if rng.random() < 0.25 else YELLOW if rng.random() < 0.25 else tuple(rng.uniform(0.1, 1, 3))
                 z0 = rng.uniform(0.0, 1.5)
                 room.features.append(WallFeature(wall, u, u + rng.uniform(0.4, 1.2), z0, z0 + rng.uniform(0.4, 1.2), colour))
+    textures = (None, "brick", "gravel")
+    room.wall_texture = tuple(textures[int(i)] for i in rng.integers(0, len(textures), 4))
+    room.floor_texture = textures[int(rng.integers(0, len(textures)))]
+    room.texture_tile_m = float(rng.uniform(0.5, 2.5))
+    room.texture_strength = float(rng.uniform(0.2, 0.8))
+    room.carpet_pile = float(rng.uniform(0.1, 0.5))
     return room
 
 
