@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 from augment.config import OPERATIONS, AugmentConfig
+from detector.openmp_wait import sleep_while_waiting
 from detector.synth.scene import SceneConfig
 from detector.errors import run_command
 
@@ -29,12 +30,12 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def _threads(text: str) -> int | str:
-    if text == "auto":
+    if text in ("auto", "shared"):
         return text
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"--threads {text!r}: give a number of threads or `auto`") from None
+        raise argparse.ArgumentTypeError(f"--threads {text!r}: give a number of threads, `auto` or `shared`") from None
     if value < 1:
         raise argparse.ArgumentTypeError(f"--threads {value}: at least 1")
     return value
@@ -112,8 +113,10 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--batch", type=int, default=8)
     train.add_argument("--patience", type=int, default=50, help="stop after this many epochs without improvement")
     train.add_argument("--seed", type=int, default=0)
-    train.add_argument("--threads", type=_threads, help="torch threads: a number, or `auto` to re-time the count "
-                                                      "while training (default: every core)")
+    train.add_argument("--threads", type=_threads,
+                       help="torch threads: a number; `auto` to re-time the count while training; `shared` for a "
+                            "machine other programs also use (every core, waiting threads sleep instead of spinning); "
+                            "default: every core")
     train.add_argument("--workers", type=int, default=0, help="data-loader processes (default 0: best on 2 cores)")
     train.add_argument("--no-cache", action="store_true", help="do not cache decoded images in RAM")
     train.add_argument("--device", default="cpu",
@@ -343,13 +346,16 @@ def _split(args: argparse.Namespace) -> int:
 
 
 def _train(args: argparse.Namespace) -> int:
+    if args.threads == "shared" and not sleep_while_waiting():
+        print("--threads shared: torch was loaded already, OpenMP keeps its wait policy", file=sys.stderr)
     from detector.training import TrainSettings, starting_point, summarise_run, train_model
 
     model, weights = (args.model or "", None) if args.resume else starting_point(args.model, args.weights)
     if not args.resume:
         print(f"starting from {weights or f'{model}.yaml (no pretrained weights)'}")
+    threads = args.threads if isinstance(args.threads, int) else None
     settings = TrainSettings(model=model or "yolov8n-seg", epochs=args.epochs, imgsz=args.imgsz, batch=args.batch,
-                             patience=args.patience, seed=args.seed, threads=None if args.threads == "auto" else args.threads,
+                             patience=args.patience, seed=args.seed, threads=threads,
                              adaptive_threads=args.threads == "auto", workers=args.workers,
                              cache=not args.no_cache, time_hours=args.time, device=args.device)
     run = train_model(args.data, args.out, settings, weights=weights, resume=args.resume)

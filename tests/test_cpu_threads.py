@@ -37,3 +37,25 @@ def test_tuner_follows_a_load_that_arrives(monkeypatch):
         if batch == 39:
             assert tuner.threads == 2
     assert tuner.threads == 1
+
+
+def test_shared_machine_wait_policy_is_set_only_before_torch_loads():
+    """libgomp reads OMP_WAIT_POLICY once, when torch loads it: after that the request must say it came too late."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("import os; from detector.openmp_wait import sleep_while_waiting; first = sleep_while_waiting(); "
+            "policy = os.environ.pop('OMP_WAIT_POLICY', None); import torch; "
+            "print(first, policy, sleep_while_waiting(), os.environ.get('OMP_WAIT_POLICY'))")
+    env = {k: v for k, v in os.environ.items() if k != "OMP_WAIT_POLICY"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
+    assert out.stdout.split() == ["True", "PASSIVE", "False", "None"]
+
+
+def test_threads_option_accepts_counts_auto_and_shared():
+    from detector.cli import build_parser
+
+    parse = build_parser().parse_args
+    assert [parse(["train", "--data", "d", "--out", "o", "--threads", t]).threads for t in ("2", "auto", "shared")] == \
+        [2, "auto", "shared"]
