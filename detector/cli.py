@@ -222,6 +222,9 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--budget", choices=("fast", "full"), default="fast",
                       help="fast: about 15 minutes on two cores (default); full: the thesis's settings (days)")
     demo.add_argument("--seed", type=int, default=0)
+    demo.add_argument("--threads", choices=("all", "shared"), default="all",
+                      help="all: every core, threads spin while they wait (default, fastest when idle); shared: for a "
+                           "machine other programs also use (waiting threads sleep instead)")
 
     for command in sub.choices.values():
         command.add_argument("--debug", action="store_true", help="show the traceback of an unexpected error")
@@ -345,9 +348,14 @@ def _split(args: argparse.Namespace) -> int:
     return 0
 
 
-def _train(args: argparse.Namespace) -> int:
-    if args.threads == "shared" and not sleep_while_waiting():
+def _choose_wait_policy(threads: int | str | None) -> None:
+    """``--threads shared``: let OpenMP threads sleep while they wait; must run before torch is imported."""
+    if threads == "shared" and not sleep_while_waiting():
         print("--threads shared: torch was loaded already, OpenMP keeps its wait policy", file=sys.stderr)
+
+
+def _train(args: argparse.Namespace) -> int:
+    _choose_wait_policy(args.threads)
     from detector.training import TrainSettings, starting_point, summarise_run, train_model
 
     model, weights = (args.model or "", None) if args.resume else starting_point(args.model, args.weights)
@@ -419,6 +427,7 @@ FALLBACK_CONF = 0.5
 
 
 def _demo(args: argparse.Namespace) -> int:
+    _choose_wait_policy(args.threads)
     from detector.demo.pipeline import BUDGETS, run_demo
 
     return run_demo(args.out, BUDGETS[args.budget], args.seed)

@@ -59,3 +59,4 @@ def test_threads_option_accepts_counts_auto_and_shared():
     parse = build_parser().parse_args
     assert [parse(["train", "--data", "d", "--out", "o", "--threads", t]).threads for t in ("2", "auto", "shared")] == \
         [2, "auto", "shared"]
+    assert [parse(["demo", *extra]).threads for extra in ([], ["--threads", "shared"])] == ["all", "shared"]
