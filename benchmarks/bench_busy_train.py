@@ -23,7 +23,7 @@ BATCH, IMGSZ = 16, 320
 #: Variant name: extra environment of its process.
 VARIANTS = {
     "plain yolo": {},
-    "poles: all cores": {"GOMP_SPINCOUNT": "300000"},  # libgomp's own default, whatever `poles` sets
+    "poles: all cores": {"GOMP_SPINCOUNT": "300000"},  # libgomp's default spin, stated so the row cannot drift
     "poles: passive wait": {"OMP_WAIT_POLICY": "PASSIVE"},
     "poles: short spin": {"GOMP_SPINCOUNT": "10000"},
     "poles: tuner": {},

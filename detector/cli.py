@@ -6,9 +6,9 @@ import sys
 from pathlib import Path
 
 from augment.config import OPERATIONS, AugmentConfig
+from detector.errors import run_command
 from detector.openmp_wait import sleep_while_waiting
 from detector.synth.scene import SceneConfig
-from detector.errors import run_command
 
 
 

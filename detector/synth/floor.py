@@ -5,9 +5,9 @@ nearer the lower its foot lies in the image. ``read_floor`` models the floor's c
 (robust median and spread in Lab), keeps the floor-coloured region that reaches the bottom edge (closed, so field
 lines and small marks count as floor) and, per column, finds the nearest thing standing on it: the run of non-floor
 pixels just above the floor that reaches the bottom, unless the floor goes on above it (then it is a line or a mark
-lying on the floor, or too small to matter: balls are lost with the lines). The scene sampler then only puts a pole's foot on the floor
-and keeps the horizon above it; the renderer hides an object wherever such a run stands lower (nearer) than the
-object's own foot. Labels stay exact: the hidden pixels leave the masks.
+lying on the floor, or too small to matter: balls are lost with the lines). The scene sampler then only puts a
+pole's foot on the floor and keeps the horizon above it; the renderer hides an object wherever such a run stands
+lower (nearer) than the object's own foot. Labels stay exact: the hidden pixels leave the masks.
 """
 from __future__ import annotations
 
@@ -32,6 +32,8 @@ MIN_SPREAD = (12.0, 3.0, 3.0)
 CLOSE_SHARE = 1 / 40
 #: A thing stands in front of an object only when its foot lies this many rows below the object's.
 FRONT_MARGIN_PX = 3
+#: The nearest the floor's far edge (a wall, furniture) may be to the camera, in metres: bounds the pitch from above.
+NEAREST_FAR_EDGE_M = 1.0
 
 
 @dataclass(frozen=True)
@@ -77,15 +79,14 @@ def read_floor(image: np.ndarray) -> FloorMap:
     size = max(3, round(width * CLOSE_SHARE)) | 1
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
     closed = cv2.morphologyEx(candidate.astype(np.uint8), cv2.MORPH_CLOSE, kernel)
-    count, labels = cv2.connectedComponents(closed, connectivity=4)
+    _, labels = cv2.connectedComponents(closed, connectivity=4)
     touching = np.unique(labels[-1][closed[-1] > 0])
     floor = np.isin(labels, touching) & (closed > 0)
-    rows = np.arange(height)[:, None]
     floor_top = np.where(floor.any(axis=0), floor.argmax(axis=0), height)
     # Nearest thing per column: the first non-floor run above the floor that reaches the bottom edge.
     floor_to_bottom = np.cumprod(floor[::-1], axis=0)[::-1].astype(bool)
     run_bottom = height - 1 - floor_to_bottom.sum(axis=0)  # -1: the column is floor all the way up
-    beyond = rows > run_bottom[None, :]
+    beyond = np.arange(height)[:, None] > run_bottom[None, :]
     run = np.cumprod((~floor | beyond)[::-1], axis=0)[::-1].astype(bool) & ~beyond
     # A run with floor above it lies on the floor (a field line, a mark) or is too small to matter: it hides nothing.
     flat = run.any(axis=0) & (floor_top < run.argmax(axis=0))
@@ -118,7 +119,7 @@ def pitch_range_deg(floor: FloorMap, focal_px: float, cy: float, camera_height_m
     """Camera pitches (deg, down positive) within ``allowed`` that put the horizon above the floor's top edge but
     no further above it than a wall 1 m away would (the floor seen must end somewhere past the robot's feet)."""
     lowest = floor.far_edge - FRONT_MARGIN_PX
-    highest = lowest - focal_px * camera_height_m / 1.0
+    highest = lowest - focal_px * camera_height_m / NEAREST_FAR_EDGE_M
     low = math.degrees(math.atan((cy - lowest) / focal_px))
     high = math.degrees(math.atan((cy - highest) / focal_px))
     low, high = max(low, allowed[0]), min(high, allowed[1])

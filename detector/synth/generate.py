@@ -14,8 +14,8 @@ from detector.datasets.polygons import mask_to_polygon
 from detector.parallel import default_workers, ordered_map
 from detector.preview import contact_sheet, draw_instances
 from detector.synth.backdrops import load_backdrop, sample_look
-from detector.synth.floor import floor_of
 from detector.synth.effects import apply_camera_effects, camera_effects
+from detector.synth.floor import floor_of
 from detector.synth.render import render_scene
 from detector.synth.scene import SceneConfig, calibration_scene, sample_scene
 from naoslam.camera import PinholeCamera

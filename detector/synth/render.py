@@ -11,7 +11,7 @@ from detector.synth.background import render_background
 from detector.synth.floor import FloorMap
 from detector.synth.objects import Cylinder, Quad
 from detector.synth.raycast import Hit, cast_cylinder, cast_quad, world_rays
-from detector.synth.scene import Scene
+from detector.synth.scene import Scene, foot_pixel
 from naoslam.landmarks import PoleGeometry
 
 
@@ -99,10 +99,7 @@ def _hide_behind_frame_content(scene: Scene, objects: list, floor: FloorMap, own
         if not shown.any():
             continue
         foot = obj.base if isinstance(obj, Cylinder) else obj.centre
-        point = scene.pose.to_camera(np.array([foot[0], foot[1], 0.0]))
-        if point[2] <= 1e-6:
-            continue
-        foot_row = float(scene.camera.project(point)[1])
+        _, foot_row = foot_pixel(scene.pose, scene.camera, foot[0], foot[1])  # behind the camera: below the frame
         owner[shown & floor.in_front_of(foot_row)] = -1
 
 
