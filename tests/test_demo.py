@@ -39,7 +39,7 @@ def test_ledger_records_a_failure_and_keeps_earlier_stages(tmp_path):
     assert "no frames" in saved["second"]["error"]
 
 
-def test_demo_runs_every_stage_writes_the_report_and_resumes(tmp_path):
+def test_demo_runs_every_stage_writes_the_report_and_resumes(tmp_path, monkeypatch):
     out = tmp_path / "demo"
     assert run_demo(out, TINY) == 0
     stages = json.loads((out / "stages.json").read_text())
@@ -60,3 +60,10 @@ def test_demo_runs_every_stage_writes_the_report_and_resumes(tmp_path):
     assert run_demo(out, TINY) == 0
     after = json.loads((out / "stages.json").read_text())
     assert {k: v["seconds"] for k, v in after.items()} == before
+    # A new starting checkpoint (an updated package ships other weights) makes training, and all after it, run again.
+    monkeypatch.setattr("detector.demo.pipeline._start_weights", lambda model: None)
+    assert run_demo(out, TINY) == 0
+    again = json.loads((out / "stages.json").read_text())
+    assert again["train yolov8n-seg"]["summary"]["weights_from"] == "scratch"
+    assert stages["train yolov8n-seg"]["summary"]["weights_from"].endswith("poles-yolov8n-seg.pt")
+    assert {k for k in again if again[k]["seconds"] != before[k]} >= {"train yolov8n-seg", "export yolov8n-seg"}

@@ -12,7 +12,7 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-from detector.demo.stages import StageLedger, StageFailed, stage_key
+from detector.demo.stages import StageFailed, StageLedger, file_fingerprint, stage_key
 
 console = Console()
 
@@ -100,12 +100,13 @@ def _stages(ledger: StageLedger, out: Path, budget: Budget, seed: int) -> dict:
         data, augmented, copies=budget.copies, seed=seed, preview=True, force=True))
     models = {}
     for model in budget.models:
-        train_key = stage_key(data=key, model=model, imgsz=budget.imgsz, epochs=budget.epochs,
-                              hours=budget.train_hours, batch=budget.batch, seed=seed)
+        start = _start_weights(model)
+        train_key = stage_key(data=key, model=model, start=file_fingerprint(start), imgsz=budget.imgsz,
+                              epochs=budget.epochs, hours=budget.train_hours, batch=budget.batch, seed=seed)
         run = out / "train" / model
         results[f"train {model}"] = ledger.run(f"train {model}", train_key, [run / "weights" / "best.pt"],
                                                lambda: _train(ledger, f"train {model}", train_key, augmented, run,
-                                                              model, budget, seed))
+                                                              model, start, budget, seed))
         export_key = stage_key(train=train_key, hw=budget.export_hw)
         onnx = out / "models" / f"{model}.onnx"
         results[f"export {model}"] = ledger.run(f"export {model}", export_key, [onnx], lambda: _export(
@@ -140,10 +141,17 @@ def _dataset_summary(root: Path) -> dict:
             "empty": sum(1 for s in dataset.samples if not s.instances), "preview": str(root / "preview.png")}
 
 
-def _train(ledger: StageLedger, name: str, key: str, data: Path, run: Path, model: str, budget: Budget,
-           seed: int) -> dict:
-    """Train, resuming an interrupted run of the same stage; a run left by other settings is started afresh."""
-    from detector.training import TrainSettings, starting_point, summarise_run, train_model
+def _start_weights(model: str) -> Path | None:
+    """The checkpoint the demo fine-tunes ``model`` from: the shipped one for its architecture, else none (YAML)."""
+    from detector.training import starting_point
+
+    return starting_point(model, None)[1]
+
+
+def _train(ledger: StageLedger, name: str, key: str, data: Path, run: Path, model: str, weights: Path | None,
+           budget: Budget, seed: int) -> dict:
+    """Train from ``weights``, resuming an interrupted run of the same stage; other leftovers are started afresh."""
+    from detector.training import TrainSettings, summarise_run, train_model
 
     previous = ledger.previous(name)
     resume = bool(previous and previous.key == key and (run / "weights" / "last.pt").is_file())
@@ -151,7 +159,6 @@ def _train(ledger: StageLedger, name: str, key: str, data: Path, run: Path, mode
         shutil.rmtree(run)
     settings = TrainSettings(model=model, epochs=budget.epochs, imgsz=budget.imgsz, batch=budget.batch,
                              patience=max(budget.epochs // 4, 10), seed=seed, time_hours=budget.train_hours)
-    _, weights = starting_point(model, None)
     train_model(data, run, settings, weights=weights, resume=resume)
     return {**summarise_run(run), "model": model, "weights_from": str(weights or "scratch"), "imgsz": budget.imgsz,
             "curves": str(run / "training_curves.png"),

@@ -37,6 +37,13 @@ def stage_key(**inputs: Any) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+def file_fingerprint(path: Path | None) -> str:
+    """Hash of a file's bytes, so a stage that reads it reruns when it changes (``"none"`` for no file)."""
+    if path is None:
+        return "none"
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
+
+
 class StageLedger:
     """Runs stages in order, skipping those already done with the same key."""
 
