@@ -31,7 +31,7 @@ clean:
 	rm -rf runs .pytest_cache
 
 # The shipped pole model's recipe (README, "The shipped pole model"). BACKGROUNDS: real frames without poles.
-# Training took 23 + 19 minutes on one H100 (--device 0); on a two-core CPU it would take days.
+# Training took 23 + 24 minutes on one H100 (--device 0); on a two-core CPU it would take days.
 BACKGROUNDS ?= ../shared/real-backgrounds
 DEVICE ?= cpu
 POLE_TRAIN = --model yolov8n-seg --imgsz 640 --batch 64 --workers 14 --patience 100 --device $(DEVICE)
