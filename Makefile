@@ -36,6 +36,7 @@ BACKGROUNDS ?= ../shared/real-backgrounds
 DEVICE ?= cpu
 POLE_TRAIN = --model yolov8n-seg --imgsz 640 --batch 64 --workers 14 --patience 100 --device $(DEVICE)
 POLE_SYNTH = --backgrounds $(BACKGROUNDS) --backdrop-share 0.75
+# The last run of stage 2: its best.pt is what ships.
 FINAL = runs/pole-model-2-3
 # Chained time-capped runs, each fine-tuned from the one before's last.pt (the GPU lease ran commands of at most
 # 10 minutes): $(1) data, $(2) first weights, $(3) run folder prefix, $(4) hours of each run, $(5) seed.
