@@ -11,7 +11,6 @@ from detector.openmp_wait import sleep_while_waiting
 from detector.synth.scene import SceneConfig
 
 
-
 #: Augmentation strength limits that have a flag of their own (AugmentConfig field -> help text).
 STRENGTH_FLAGS = {"rotate_deg": "whole-image rotation limit", "shear_deg": "shear limit",
                   "saturation": "saturation change limit (fraction)", "brightness": "brightness change limit (fraction)",
@@ -356,7 +355,8 @@ def _choose_wait_policy(threads: int | str | None) -> None:
 
 def _train(args: argparse.Namespace) -> int:
     _choose_wait_policy(args.threads)
-    from detector.training import TrainSettings, starting_point, summarise_run, train_model
+    from detector.starting_point import starting_point
+    from detector.training import TrainSettings, summarise_run, train_model
 
     model, weights = (args.model or "", None) if args.resume else starting_point(args.model, args.weights)
     if not args.resume:

@@ -22,32 +22,6 @@ from detector.training_curves import best_epoch, plot_training_curves
 
 #: Segmentation models that can be built from their YAML without a download.
 MODELS = ("yolov8n-seg", "yolov8s-seg", "yolov8m-seg")
-#: The pole-pretrained checkpoint shipped with the package (the source of naoslam's shipped ONNX models).
-SHIPPED_WEIGHTS = Path(__file__).resolve().parent / "weights" / "poles-yolov8n-seg.pt"
-#: Its architecture.
-SHIPPED_ARCHITECTURE = "yolov8n-seg"
-#: ``--weights`` value that trains from the YAML instead.
-SCRATCH = "scratch"
-
-
-def starting_point(model: str | None, weights: str | None) -> tuple[str, Path | None]:
-    """The architecture and checkpoint a run starts from.
-
-    No ``weights``: the shipped pole checkpoint when the architecture is its own (or not given), else the YAML.
-    ``weights="scratch"``: the YAML of ``model`` (default the shipped architecture). Otherwise the given checkpoint.
-    """
-    if weights == SCRATCH:
-        return model or SHIPPED_ARCHITECTURE, None
-    if weights is not None:
-        return model or SHIPPED_ARCHITECTURE, Path(weights)
-    if model in (None, SHIPPED_ARCHITECTURE):
-        if not SHIPPED_WEIGHTS.is_file():
-            raise FileNotFoundError(f"{SHIPPED_WEIGHTS}: the shipped pole checkpoint is missing - reinstall nao-poles "
-                                    "or pass --weights scratch")
-        return SHIPPED_ARCHITECTURE, SHIPPED_WEIGHTS
-    return model, None
-
-
 @dataclass(frozen=True)
 class TrainSettings:
     """What ``poles train`` passes to Ultralytics. Defaults are the thesis's (YOLOv8s, 640 px)."""

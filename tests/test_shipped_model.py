@@ -14,7 +14,8 @@ import yaml
 from detector.cli import main
 from detector.synth.render import render_scene
 from detector.synth.scene import calibration_scene
-from detector.training import SHIPPED_WEIGHTS, TrainSettings, train_model
+from detector.starting_point import SHIPPED_WEIGHTS
+from detector.training import TrainSettings, train_model
 from export.ship import SIZE_BUDGET
 from naoslam.camera import PinholeCamera
 from naoslam.detector import LandmarkDetector

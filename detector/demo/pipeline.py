@@ -13,6 +13,7 @@ from rich.console import Console
 from rich.table import Table
 
 from detector.demo.stages import StageFailed, StageLedger, file_fingerprint, stage_key
+from detector.starting_point import starting_point
 
 console = Console()
 
@@ -143,8 +144,6 @@ def _dataset_summary(root: Path) -> dict:
 
 def _start_weights(model: str) -> Path | None:
     """The checkpoint the demo fine-tunes ``model`` from: the shipped one for its architecture, else none (YAML)."""
-    from detector.training import starting_point
-
     return starting_point(model, None)[1]
 
 
