@@ -1,7 +1,6 @@
 """Random scenes: a Nao camera somewhere on the field, poles and look-alike distractors in view, a lit room."""
 from __future__ import annotations
 
-import colorsys
 import math
 from dataclasses import dataclass, field
 
@@ -9,11 +8,11 @@ import numpy as np
 
 from detector.synth.background import Room, WallFeature
 from detector.synth.floor import FloorMap, pitch_range_deg
+from detector.synth.paint import PaintVariation
 from detector.synth.objects import (BAND_RGB, PINK, WHITE, YELLOW, Cylinder, Quad, horizontal_rotation, pole,
                                     tilt_rotation)
 from detector.synth.raycast import Lighting
 from naoslam.camera import CameraPose, PinholeCamera
-from naoslam.colour_filter import HSV_RANGES
 from naoslam.field import FieldGeometry
 from naoslam.landmarks import CLASSES, PoleGeometry
 
@@ -33,12 +32,8 @@ class SceneConfig:
     max_lean_deg: float = 12.0
     max_distractors: int = 4
     view_margin_deg: float = 6.0
-    #: Printed paint varies between poles and prints, drawn per band of each pole and kept inside the HSV box that
-    #: the colour filter accepts for that colour: hue shift (s.d. as a fraction of the box's hue width), saturation
-    #: and value scales (uniform ranges).
-    paint_hue_spread: float = 0.25
-    paint_saturation: tuple[float, float] = (0.55, 1.1)
-    paint_value: tuple[float, float] = (0.3, 1.05)
+    #: How printed paint varies between poles and prints, in the scenes that vary it.
+    paint: PaintVariation = PaintVariation()
     #: Share of scenes whose poles keep the nominal paint (the rest vary it): fresh prints and the look a model
     #: already knows stay as common as worn, dull or off-hue ones.
     nominal_paint_share: float = 0.5
@@ -89,7 +84,7 @@ def sample_scene(rng: np.random.Generator, camera: PinholeCamera, config: SceneC
         if rng.random() < config.p_lean:
             lean = tilt_rotation(math.radians(rng.uniform(2, config.max_lean_deg)), rng.uniform(-math.pi, math.pi))
         scene.cylinders.append(pole(str(rng.choice(CLASSES)), *spot, config.pole, lean,
-                                   paint=_paint(rng, config) if vary_paint else BAND_RGB))
+                                   paint=config.paint.draw(rng) if vary_paint else BAND_RGB))
     for _ in range(int(rng.integers(0, config.max_distractors + 1))):
         spot = _free_spot(rng, pose, camera, config, occupied, floor)
         if spot is not None:
@@ -154,58 +149,6 @@ def _lighting(rng) -> Lighting:
     azimuth, elevation = rng.uniform(-math.pi, math.pi), math.radians(rng.uniform(25, 75))
     direction = np.array([math.cos(elevation) * math.cos(azimuth), math.cos(elevation) * math.sin(azimuth), math.sin(elevation)])
     return Lighting(direction, ambient=rng.uniform(0.35, 0.6), diffuse=rng.uniform(0.45, 0.8))
-
-
-def _paint(rng, config: SceneConfig) -> dict[str, tuple[float, float, float]]:
-    """One pole's band colours: each nominal paint shifted in hue and scaled in saturation and value, inside
-    ``paint_box`` of its colour."""
-    paint = {}
-    for letter, rgb in BAND_RGB.items():
-        box = paint_box(letter)
-        hue, saturation, value = colorsys.rgb_to_hsv(*rgb)
-        hue = _hue_inside(rng, _unwrap(hue, box.hue), config.paint_hue_spread * box.hue_width, box.hue) % 1.0
-        saturation = float(np.clip(saturation * rng.uniform(*config.paint_saturation), *box.saturation))
-        value = float(np.clip(value * rng.uniform(*config.paint_value), box.value[0], 1.0))
-        paint[letter] = colorsys.hsv_to_rgb(hue, saturation, value)
-    return paint
-
-
-@dataclass(frozen=True)
-class PaintBox:
-    """An HSV box, each axis 0..1; ``hue`` may run past 1 (wrapping through red)."""
-
-    hue: tuple[float, float]
-    saturation: tuple[float, float]
-    value: tuple[float, float]
-
-    @property
-    def hue_width(self) -> float:
-        return self.hue[1] - self.hue[0]
-
-
-def paint_box(letter: str) -> PaintBox:
-    """The colour filter's HSV range for a band colour (``naoslam.colour_filter.HSV_RANGES``) as a box in 0..1:
-    the one definition of what still counts as pink, blue, yellow or green, which varied paint stays inside."""
-    hues, s_min, s_max, v_min = HSV_RANGES[letter]
-    low, high = hues[0]
-    if len(hues) > 1:  # pink: (145..179) and (0..4) are one range wrapping through red
-        high = hues[1][1] + 180
-    inside = 0.5  # half a filter step in from every edge, so 8-bit rounding cannot push a colour out
-    return PaintBox(hue=((low + inside) / 180, (high - inside) / 180),
-                    saturation=((s_min + inside) / 255, (s_max - inside) / 255), value=((v_min + inside) / 255, 1.0))
-
-
-def _hue_inside(rng, centre: float, sd: float, hue_range: tuple[float, float]) -> float:
-    """A normal draw around ``centre``, drawn again until it falls inside ``hue_range`` (no pile-up at the edges)."""
-    while True:
-        hue = centre + rng.normal(0.0, sd)
-        if hue_range[0] <= hue <= hue_range[1]:
-            return hue
-
-
-def _unwrap(hue: float, hue_range: tuple[float, float]) -> float:
-    """``hue`` moved by a full turn if that brings it inside a range that wraps past 1."""
-    return hue + 1.0 if hue < hue_range[0] and hue + 1.0 <= hue_range[1] else hue
 
 
 def _jitter(rng, rgb, amount: float = 0.06) -> tuple[float, float, float]:
