@@ -135,3 +135,11 @@ def test_varied_paint_spreads_wide_but_every_band_still_passes_the_colour_filter
                     green_hues.append(colorsys.rgb_to_hsv(*rgb)[0] * 360)
     # the design thesis lost green bands to blue and to shade: varied green reaches from yellow-green to teal
     assert np.percentile(green_hues, 5) < 110 and np.percentile(green_hues, 95) > 165
+
+
+def test_a_paint_spread_that_never_lands_inside_its_box_ends_clipped_instead_of_looping():
+    from detector.synth.paint import PaintVariation, paint_box
+    paint = PaintVariation(hue_spread=1e6).draw(np.random.default_rng(0))
+    for letter, rgb in paint.items():
+        box, hue = paint_box(letter), colorsys.rgb_to_hsv(*rgb)[0]
+        assert box.hue[0] <= hue <= box.hue[1] or box.hue[0] <= hue + 1.0 <= box.hue[1], letter

@@ -60,12 +60,15 @@ class PaintVariation:
         return paint
 
 
-def _hue_inside(rng: np.random.Generator, centre: float, sd: float, hue_range: tuple[float, float]) -> float:
-    """A normal draw around ``centre``, drawn again until it falls inside ``hue_range`` (no pile-up at the edges)."""
-    while True:
+def _hue_inside(rng: np.random.Generator, centre: float, sd: float, hue_range: tuple[float, float],
+                tries: int = 100) -> float:
+    """A normal draw around ``centre``, drawn again while it falls outside ``hue_range`` (no pile-up at the edges);
+    after ``tries`` misses (a centre outside the range, or a huge spread) the centre clipped into the range."""
+    for _ in range(tries):
         hue = centre + rng.normal(0.0, sd)
         if hue_range[0] <= hue <= hue_range[1]:
             return hue
+    return float(np.clip(centre, *hue_range))
 
 
 def _unwrap(hue: float, hue_range: tuple[float, float]) -> float:

@@ -8,9 +8,9 @@ import numpy as np
 
 from detector.synth.background import Room, WallFeature
 from detector.synth.floor import FloorMap, pitch_range_deg
-from detector.synth.paint import PaintVariation
 from detector.synth.objects import (BAND_RGB, PINK, WHITE, YELLOW, Cylinder, Quad, horizontal_rotation, pole,
                                     tilt_rotation)
+from detector.synth.paint import PaintVariation
 from detector.synth.raycast import Lighting
 from naoslam.camera import CameraPose, PinholeCamera
 from naoslam.field import FieldGeometry
