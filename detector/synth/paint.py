@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import colorsys
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 
@@ -27,6 +28,7 @@ class PaintBox:
         return self.hue[1] - self.hue[0]
 
 
+@cache
 def paint_box(letter: str) -> PaintBox:
     """The colour filter's HSV range for a band colour as a box in 0..1."""
     hues, s_min, s_max, v_min = HSV_RANGES[letter]
