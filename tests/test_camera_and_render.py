@@ -84,3 +84,15 @@ def test_bearing_forms_agree_near_the_centre_and_differ_at_the_edge():
     assert float(camera.linear_bearing_of_column(0.0)) == pytest.approx(math.radians(56.3 / 2))
     assert float(camera.bearing_of_column(0.0)) == pytest.approx(math.radians(56.3 / 2))
     assert abs(camera.bearing_of_column(160.0) - camera.linear_bearing_of_column(160.0)) > 1e-3
+
+
+@pytest.mark.parametrize("pitch_deg, shows_upper_band", [(30.0, True), (35.0, True), (40.0, False)])
+def test_a_pole_is_nameable_only_while_both_bands_show(pitch_deg, shows_upper_band):
+    """Looking down ever more steeply, the frame's top edge cuts the pole from above: once the upper band is gone,
+    the lower band and the white base alone cannot tell the class, so the generator leaves the pole unlabelled."""
+    _, _, frame = _single_pole_frame(0.8, 0.0, pitch_deg=pitch_deg)
+    (truth,) = frame.poles
+    (upper_shown, lower_shown), (upper_whole, lower_whole) = truth.band_pixels_shown, truth.band_pixels_whole
+    assert truth.partial and lower_shown >= 0.3 * lower_whole  # the lower band shows well throughout
+    assert 0 <= upper_shown < upper_whole
+    assert (upper_shown >= 30) == shows_upper_band == truth.nameable

@@ -41,8 +41,10 @@ def test_labels_are_the_rendered_visible_masks():
         scene = sample_scene(np.random.default_rng([11, index]), camera)
         frame = render_scene(scene)
         sample = render_one(SynthJob(12, 11, 320, 240), index)
-        # What the generator labels: enough pixels for an outline (a few scattered slivers of a hidden pole have none).
-        big = [p for p in frame.poles if p.mask.sum() >= MIN_LABEL_PIXELS and mask_to_polygon(p.mask) is not None]
+        # What the generator labels: enough pixels for an outline (a few scattered slivers of a hidden pole have none),
+        # and enough of both bands to name the pole.
+        big = [p for p in frame.poles
+               if p.mask.sum() >= MIN_LABEL_PIXELS and mask_to_polygon(p.mask) is not None and p.nameable]
         assert [p.cls for p in big] == [i.cls for i in sample.instances]
         for truth, instance in zip(big, sample.instances):
             label = polygon_to_mask(instance.pixels(320, 240), 320, 240)

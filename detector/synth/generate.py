@@ -16,7 +16,7 @@ from detector.preview import contact_sheet, draw_instances
 from detector.synth.backdrops import load_backdrop, sample_look
 from detector.synth.effects import apply_camera_effects, camera_effects
 from detector.synth.floor import floor_of
-from detector.synth.render import render_scene
+from detector.synth.render import MIN_BAND_PIXELS, MIN_BAND_SHARE, render_scene
 from detector.synth.scene import SceneConfig, calibration_scene, sample_scene
 from naoslam.camera import PinholeCamera
 from naoslam.landmarks import CLASSES
@@ -110,7 +110,7 @@ def render_one(job: SynthJob, index: int) -> RenderedSample:
     instances, truth = [], []
     size = np.array([camera.width, camera.height], np.float64)
     for pole in frame.poles:
-        if pole.mask.sum() < MIN_LABEL_PIXELS:
+        if pole.mask.sum() < MIN_LABEL_PIXELS or not pole.nameable:
             continue
         polygon = mask_to_polygon(pole.mask)
         if polygon is None:
@@ -118,6 +118,7 @@ def render_one(job: SynthJob, index: int) -> RenderedSample:
         instances.append(Instance(pole.cls, polygon / size))
         truth.append({"cls": pole.cls, "class_id": CLASSES.index(pole.cls), "range_m": round(pole.range_m, 4),
                       "bearing_rad": round(pole.bearing_rad, 5), "visible_fraction": round(pole.visible_fraction, 4),
+                      "band_pixels": [list(pole.band_pixels_shown), list(pole.band_pixels_whole)],
                       "partial": pole.partial, "band_divide_centre_px": [round(c, 2) for c in pole.band_divide_px],
                       "band_centre_distance_px": round(pole.band_centre_distance_px, 2),
                       "position_m": [round(c, 4) for c in pole.position_m], "pixels": int(pole.mask.sum())})
@@ -181,6 +182,9 @@ ANNOTATION_FIELDS = {
     "range_m": "horizontal distance from the camera to the pole axis at the ground",
     "bearing_rad": "direction of the pole from the camera's heading, left positive",
     "visible_fraction": "visible pixels / pixels of the whole unoccluded silhouette (also outside the image)",
+    "band_pixels": "visible pixels of the upper and the lower coloured band, then those bands' pixels uncut and "
+                   f"unhidden; a pole is labelled only when each band shows {MIN_BAND_PIXELS} pixels or "
+                   f"{MIN_BAND_SHARE:.0%} of itself",
     "partial": "true if part of the pole's silhouette lies outside the image",
     "band_divide_centre_px": "projection of the pole-axis point between the two coloured bands, x right, y down",
     "band_centre_distance_px": "pixel distance between the projected centres of the two coloured bands",

@@ -29,13 +29,22 @@ class Lighting:
 
 @dataclass
 class Hit:
-    """What one object covers inside pixel box [u0, u1) x [v0, v1): coverage, depth and shaded colour."""
+    """What one object covers inside pixel box [u0, u1) x [v0, v1): coverage, depth and shaded colour.
+
+    ``axial`` (cylinders only) is the height along the axis of the surface each pixel shows, so a pixel's band is known.
+    """
 
     u0: int
     v0: int
     mask: np.ndarray
     depth: np.ndarray
     colour: np.ndarray
+    axial: np.ndarray | None = None
+
+    def band_pixels(self, z0: float, z1: float, shown: np.ndarray | None = None) -> int:
+        """How many covered pixels (of ``shown``, a mask over this hit's box, if given) show axis heights z0..z1."""
+        inside = self.mask & (self.axial >= z0) & (self.axial <= z1)
+        return int((inside & shown).sum() if shown is not None else inside.sum())
 
 
 def pixel_box(points_world: np.ndarray, pose: CameraPose, camera: PinholeCamera, clip: bool) -> tuple[int, int, int, int] | None:
@@ -90,7 +99,7 @@ def cast_cylinder(cylinder: Cylinder, pose: CameraPose, camera: PinholeCamera, l
     for z0, z1, rgb in cylinder.bands:
         colour[(z >= z0) & (z <= z1)] = rgb
     colour *= brightness[..., None]
-    return Hit(box[0], box[1], mask, np.where(mask, t, np.inf), colour)
+    return Hit(box[0], box[1], mask, np.where(mask, t, np.inf), colour, z)
 
 
 def cast_quad(quad: Quad, pose: CameraPose, camera: PinholeCamera, lighting: Lighting) -> Hit | None:

@@ -14,6 +14,12 @@ from detector.synth.raycast import Hit, cast_cylinder, cast_quad, world_rays
 from detector.synth.scene import Scene, foot_pixel
 from naoslam.landmarks import PoleGeometry
 
+#: A pole is named only when each coloured band shows (in the frame, unhidden) at least this many pixels or this share
+#: of its silhouette: its class is the pair of band colours, so a white base or one band alone cannot be named, by a
+#: model or a person.
+MIN_BAND_PIXELS = 30
+MIN_BAND_SHARE = 0.25
+
 
 @dataclass
 class PoleTruth:
@@ -28,6 +34,15 @@ class PoleTruth:
     band_divide_px: tuple[float, float]
     band_centre_distance_px: float
     position_m: tuple[float, float]
+    #: Visible pixels of the upper and the lower coloured band, and of each band's whole silhouette (uncut, unhidden).
+    band_pixels_shown: tuple[int, ...]
+    band_pixels_whole: tuple[int, ...]
+
+    @property
+    def nameable(self) -> bool:
+        """Whether enough of both coloured bands shows for anyone to tell the class (``MIN_BAND_PIXELS``/``_SHARE``)."""
+        return all(shown >= min(MIN_BAND_PIXELS, MIN_BAND_SHARE * whole)
+                   for shown, whole in zip(self.band_pixels_shown, self.band_pixels_whole))
 
 
 @dataclass
@@ -55,8 +70,9 @@ def render_scene(scene: Scene, geometry: PoleGeometry = PoleGeometry(), backdrop
         depth = np.full((cam.height, cam.width), np.inf, np.float32)
     owner = np.full((cam.height, cam.width), -1, np.int32)
     objects = [*scene.quads, *scene.cylinders]
-    for index, obj in enumerate(objects):
-        hit = cast_quad(obj, pose, cam, scene.lighting) if isinstance(obj, Quad) else cast_cylinder(obj, pose, cam, scene.lighting)
+    hits = [cast_quad(obj, pose, cam, scene.lighting) if isinstance(obj, Quad) else cast_cylinder(obj, pose, cam, scene.lighting)
+            for obj in objects]
+    for index, hit in enumerate(hits):
         if hit is not None:
             _composite(hit, index, colour, depth, owner)
     if floor is not None:
@@ -77,7 +93,8 @@ def render_scene(scene: Scene, geometry: PoleGeometry = PoleGeometry(), backdrop
         lower = _project(scene, cylinder.point_on_axis(geometry.divide_height - geometry.band_height / 2))
         poles.append(PoleTruth(cylinder.label, visible, range_m, bearing, float(visible.sum()) / max(full_area, 1),
                                in_image_area < full_area, divide, float(math.dist(upper, lower)),
-                               (float(cylinder.base[0]), float(cylinder.base[1]))))
+                               (float(cylinder.base[0]), float(cylinder.base[1])),
+                               *_band_pixels(cylinder, hits[index], full, visible)))
     if backdrop is not None:
         colour = composite(backdrop, colour, owner >= 0, look)
     return Frame(np.clip(colour, 0.0, 1.0), poles)
@@ -101,6 +118,16 @@ def _hide_behind_frame_content(scene: Scene, objects: list, floor: FloorMap, own
         foot = obj.base if isinstance(obj, Cylinder) else obj.centre
         _, foot_row = foot_pixel(scene.pose, scene.camera, foot[0], foot[1])  # behind the camera: below the frame
         owner[shown & floor.in_front_of(foot_row)] = -1
+
+
+def _band_pixels(cylinder: Cylinder, hit: Hit, full: Hit | None,
+                 visible: np.ndarray) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """Visible pixels of each coloured band (above the base, top first), and its pixels in the uncut, unhidden view."""
+    h, w = hit.mask.shape
+    shown = visible[hit.v0:hit.v0 + h, hit.u0:hit.u0 + w]
+    bands = [(z0, z1) for z0, z1, _ in reversed(cylinder.bands[1:])]
+    return (tuple(hit.band_pixels(z0, z1, shown) for z0, z1 in bands),
+            tuple(full.band_pixels(z0, z1) if full is not None else 0 for z0, z1 in bands))
 
 
 def _in_image_area(hit: Hit | None, width: int, height: int) -> int:
