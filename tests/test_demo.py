@@ -8,6 +8,7 @@ import pytest
 
 from detector.demo.pipeline import Budget, run_demo
 from detector.demo.stages import StageFailed, StageLedger, stage_key
+from naoslam.detector import LandmarkDetector
 
 TINY = Budget("tiny", images=24, copies=1, models=("yolov8n-seg",), imgsz=64, epochs=1, train_hours=None, batch=8,
               export_hw=(96, 128), calibration_shots=18, walk_seconds=8.0, compare_seeds=1, conf=None)
@@ -46,7 +47,9 @@ def test_demo_runs_every_stage_writes_the_report_and_resumes(tmp_path, monkeypat
     assert list(stages) == ["data", "check", "augment", "train yolov8n-seg", "export yolov8n-seg", "calibrate",
                             "evaluate", "slam"]
     assert all(s["status"] == "done" for s in stages.values())
-    assert stages["evaluate"]["summary"]["conf_source"] == "best F1 on the validation split"
+    # Two validation frames are too few poles to choose a threshold on: the shipped model's own stays.
+    assert stages["evaluate"]["summary"]["conf_source"].startswith("the shipped model's")
+    assert stages["evaluate"]["summary"]["conf"] == LandmarkDetector().stored_conf
     page = (out / "report.html").read_text()
     for heading in ("Stages and time taken", "Dataset and augmentation", "Training", "Export and agreement",
                     "Range calibration", "Evaluation on held-out frames", "EKF SLAM on a simulated walk"):
@@ -65,5 +68,6 @@ def test_demo_runs_every_stage_writes_the_report_and_resumes(tmp_path, monkeypat
     assert run_demo(out, TINY) == 0
     again = json.loads((out / "stages.json").read_text())
     assert again["train yolov8n-seg"]["summary"]["weights_from"] == "scratch"
+    assert again["evaluate"]["summary"]["conf_source"] == "best F1 on the validation split"
     assert stages["train yolov8n-seg"]["summary"]["weights_from"].endswith("poles-yolov8n-seg.pt")
     assert {k for k in again if again[k]["seconds"] != before[k]} >= {"train yolov8n-seg", "export yolov8n-seg"}
