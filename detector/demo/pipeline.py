@@ -49,7 +49,7 @@ BUDGETS = {
                    batch=8, export_hw=(480, 640), calibration_shots=90, walk_seconds=90.0, compare_seeds=3,
                    conf=None, rationale=(
                        "About 13 minutes on two cores, 10 of them training. The run fine-tunes the shipped "
-                       "pole-pretrained YOLOv8n (trained on 26,000 rendered frames, most over real robot-camera "
+                       "pole-pretrained YOLOv8n (trained on 38,000 rendered frames, most over real robot-camera "
                        "backgrounds) on this dataset at 640 px, the Nao's full frame width, so that far poles are "
                        "learnt at the pixel size they have on the robot; ten minutes improve a good model instead of "
                        "starting one from nothing. Exported at 640x480; the shipped model's threshold is kept, since 30 "
