@@ -123,11 +123,13 @@ def _stages(ledger: StageLedger, out: Path, budget: Budget, seed: int) -> dict:
     results["calibrate"] = ledger.run("calibrate", calibration_key, [out / "calibration" / "calibration.json"],
                                       lambda: _calibrate(out / "calibration", [p for p, _ in models.values()],
                                                          budget, seed))
-    evaluate_key = stage_key(calibration=calibration_key, conf=budget.conf, min_poles=MIN_TUNING_POLES)
+    starting_conf = _starting_conf(budget.models[0])
+    evaluate_key = stage_key(calibration=calibration_key, conf=budget.conf, min_poles=MIN_TUNING_POLES,
+                             starting_conf=starting_conf)
     results["evaluate"] = ledger.run("evaluate", evaluate_key, [out / "evaluation" / "summary.json"],
                                      lambda: _evaluate(out / "evaluation", [p for p, _ in models.values()], data,
                                                        out / "calibration" / "calibration.json", budget,
-                                                       _starting_conf(budget.models[0])))
+                                                       starting_conf))
     slam_key = stage_key(evaluate=evaluate_key, walk=budget.walk_seconds, seeds=budget.compare_seeds, seed=seed)
     best_model = next(iter(models.values()))[0]
     conf = results["evaluate"]["conf"]
