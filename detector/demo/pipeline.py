@@ -123,7 +123,7 @@ def _stages(ledger: StageLedger, out: Path, budget: Budget, seed: int) -> dict:
     results["calibrate"] = ledger.run("calibrate", calibration_key, [out / "calibration" / "calibration.json"],
                                       lambda: _calibrate(out / "calibration", [p for p, _ in models.values()],
                                                          budget, seed))
-    starting_conf = _starting_conf(budget.models[0])
+    starting_conf = _starting_conf(budget.models[0]) if budget.conf is None else None
     evaluate_key = stage_key(calibration=calibration_key, conf=budget.conf, min_poles=MIN_TUNING_POLES,
                              starting_conf=starting_conf)
     results["evaluate"] = ledger.run("evaluate", evaluate_key, [out / "evaluation" / "summary.json"],
@@ -157,12 +157,14 @@ def _start_weights(model: str) -> Path | None:
 
 
 def _starting_conf(model: str) -> float | None:
-    """The operating threshold of the model the demo fine-tunes ``model`` from: the shipped one's, else none."""
+    """The operating threshold of the model the demo fine-tunes ``model`` from: the shipped one's (read from its ONNX
+    metadata), else none."""
     if _start_weights(model) != SHIPPED_WEIGHTS:
         return None
-    from naoslam.detector import LandmarkDetector
+    from export.onnx_export import read_info
+    from naoslam.shipped import OPERATING_CONF_KEY, shipped_model
 
-    return LandmarkDetector().stored_conf
+    return read_info(shipped_model()).extra.get(OPERATING_CONF_KEY)
 
 
 def _train(ledger: StageLedger, name: str, key: str, data: Path, run: Path, model: str, weights: Path | None,
