@@ -14,7 +14,7 @@ from calibration.samples import collect_samples
 from detector.cli import main
 from detector.datasets import load_dataset
 from detector.datasets.truth import load_truth
-from detector.evaluation.counting import evaluate_image, precision_recall, totals
+from detector.evaluation.counting import confusion_matrix, evaluate_image, outcome, precision_recall, totals
 from detector.evaluation.predictors import ColourFilterPredictor, OnnxPredictor, Prediction
 from detector.evaluation.run import evaluate
 from detector.synth.generate import SynthJob, generate_dataset
@@ -148,6 +148,27 @@ def test_empty_images_without_detections_are_true_negatives():
     assert totals(images, 0.5) == {"tp": 0, "fp": 0, "fn": 0, "tn": 5}
 
 
+def test_confusion_matrix_separates_swaps_duplicates_and_misses():
+    left, middle, right = _rectangle(10), _rectangle(50), _rectangle(90)
+    image = evaluate_image("a.jpg", ["bp", "pg", "py"], [left, middle, right], [None] * 3,
+                           _prediction(["bp", "gp", "pb", "yp"], [left, left, middle, _rectangle(70)],
+                                       [0.9, 0.8, 0.7, 0.6]))
+    matrix = confusion_matrix([image], 0.5, CLASSES)
+    bp, gp, yp, pb, pg, py, none = range(7)
+    expected = np.zeros((7, 7), dtype=int)
+    expected[bp, bp] = 1  # the true positive
+    expected[pg, pb] = 1  # right place, wrong class: a swap
+    expected[none, gp] = 1  # a second box on the matched bp: a false positive on no free label
+    expected[none, yp] = 1  # nothing there
+    expected[py, none] = 1  # missed
+    assert (matrix == expected).all()
+    result = outcome(image, 0.5)
+    assert (result.matches, result.swaps, result.duplicates, result.strays, result.missed) == \
+        ([(0, 0)], [(2, 1)], [1], [3], [2])
+    counts = image.counts(0.5)
+    assert counts["fp"] == matrix[:, :6].sum() - np.trace(matrix) and counts["fn"] == matrix[:6].sum() - np.trace(matrix)
+
+
 def _clean_pole_frame(code: str, range_m: float, angle_deg: float = 0.0) -> np.ndarray:
     scene = calibration_scene(np.random.default_rng(2), PinholeCamera(), code, range_m, angle_deg)
     return cv2.cvtColor((render_scene(scene).image * 255).astype(np.uint8), cv2.COLOR_RGB2BGR)
@@ -180,6 +201,9 @@ def test_evaluate_writes_metrics_plots_and_overlays(synth_dataset, tmp_path):
     assert saved["images"] == len(load_dataset(synth_dataset).split("test"))
     assert saved["tp"] + saved["fn"] == sum(len(s.instances) for s in load_dataset(synth_dataset).split("test"))
     assert cv2.imread(str(tmp_path / "eval" / "per_image.png")) is not None
+    assert cv2.imread(str(tmp_path / "eval" / "confusion.png")) is not None
+    confusion = np.array(saved["confusion"]["counts"])
+    assert np.trace(confusion) == saved["tp"] and confusion[:-1].sum() == saved["tp"] + saved["fn"]
     assert len(list((tmp_path / "eval" / "errors").glob("*.jpg"))) == metrics["overlays"]
 
 

@@ -88,6 +88,56 @@ def precision_recall(counts: dict[str, int]) -> tuple[float, float, float]:
     return precision, recall, f1
 
 
+@dataclass(frozen=True)
+class Outcome:
+    """Where every kept detection and every label of one image went at one threshold (indices into the image's
+    predictions and labels). ``swaps`` pair a leftover detection with a leftover label it overlaps (IoU >= 0.5,
+    greedy by confidence) under another class; a ``duplicate`` overlaps a label already taken; a ``stray``
+    overlaps none; ``missed`` labels have no detection at all."""
+
+    matches: list[tuple[int, int]]
+    swaps: list[tuple[int, int]]
+    duplicates: list[int]
+    strays: list[int]
+    missed: list[int]
+
+
+def outcome(image: ImageEvaluation, conf: float) -> Outcome:
+    """The image's detections and labels at ``conf``, sorted into matches, swaps, duplicates, strays and misses."""
+    matches = image.match(conf)
+    taken_p, taken_r = {p for p, _ in matches}, {r for _, r in matches}
+    left_p = np.array([p for p in image.kept(conf) if p not in taken_p], dtype=int)
+    left_r = np.array([r for r in range(len(image.truth_classes)) if r not in taken_r], dtype=int)
+    pairs = greedy_match(image.overlap[np.ix_(left_p, left_r)], image.prediction.scores[left_p], MATCH_IOU)
+    swaps = [(int(left_p[i]), int(left_r[j])) for i, j in pairs]
+    swapped_p, swapped_r = {p for p, _ in swaps}, {r for _, r in swaps}
+    rest = [int(p) for p in left_p if p not in swapped_p]
+    on_label = [p for p in rest if image.overlap.shape[1] and image.overlap[p].max() >= MATCH_IOU]
+    return Outcome(matches, swaps, on_label, [p for p in rest if p not in on_label],
+                   [int(r) for r in left_r if r not in swapped_r])
+
+
+def confusion_matrix(images: list[ImageEvaluation], conf: float, classes: tuple[str, ...]) -> np.ndarray:
+    """Counts at ``conf``: rows are the true class, then "none"; columns the detected class, then "none".
+
+    Matches fill the diagonal and swaps lie off it; duplicates and strays (detections on no free label) fill the
+    "none" row, missed labels the "none" column. The thesis's FP is everything off the diagonal in the class
+    columns, its FN everything off it in the class rows.
+    """
+    none = len(classes)
+    matrix = np.zeros((none + 1, none + 1), dtype=int)
+    for image in images:
+        result = outcome(image, conf)
+        truth, detected = image.truth_classes, image.prediction.classes
+        for p, r in result.matches + result.swaps:
+            matrix[classes.index(truth[r]), classes.index(detected[p])] += 1
+        for p in result.duplicates + result.strays:
+            matrix[none, classes.index(detected[p])] += 1
+        for r in result.missed:
+            matrix[classes.index(truth[r]), none] += 1
+    return matrix
+
+
 def confidence_sweep(images: list[ImageEvaluation], thresholds: np.ndarray | None = None) -> list[dict]:
     """Precision, recall and F1 at each confidence threshold."""
     thresholds = np.round(np.arange(0.05, 1.0, 0.05), 2) if thresholds is None else thresholds

@@ -47,6 +47,24 @@ def plot_sweep(sweep: list[dict], png: Path, title: str) -> Path:
     return save_figure(fig, png)
 
 
+def plot_confusion(matrix: np.ndarray, classes: tuple[str, ...], png: Path, title: str) -> Path:
+    """The confusion matrix as a grid of counts: true class down, detected class across, "none" last."""
+    labels = [*classes, "none"]
+    fig, ax = plt.subplots(figsize=(4.6, 4.0), constrained_layout=True)
+    shown = np.ma.masked_equal(matrix, 0)
+    ax.imshow(shown, cmap="Blues")
+    for (row, col), count in np.ndenumerate(matrix):
+        if count:
+            dark = count > 0.6 * matrix.max()
+            ax.text(col, row, str(count), ha="center", va="center", fontsize=8, color="white" if dark else "black")
+    ax.set_xticks(range(len(labels)), labels)
+    ax.set_yticks(range(len(labels)), labels)
+    ax.set_xlabel("detected (none: missed)")
+    ax.set_ylabel("true (none: no pole there)")
+    ax.set_title(f"{title}: confusion", fontsize=9)
+    return save_figure(fig, png)
+
+
 def _outline(image: np.ndarray, mask: np.ndarray, colour, text: str) -> None:
     contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     cv2.drawContours(image, contours, -1, colour, 2)

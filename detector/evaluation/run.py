@@ -11,9 +11,9 @@ from tqdm import tqdm
 from detector.datasets.intake import open_dataset
 from detector.datasets.polygons import polygon_to_mask
 from detector.datasets.truth import load_truth
-from detector.evaluation.counting import (ImageEvaluation, confidence_sweep, evaluate_image, map_scores,
-                                          precision_recall, totals)
-from detector.evaluation.plots import plot_per_image, plot_sweep, write_overlays
+from detector.evaluation.counting import (ImageEvaluation, confidence_sweep, confusion_matrix, evaluate_image,
+                                          map_scores, outcome, precision_recall, totals)
+from detector.evaluation.plots import plot_confusion, plot_per_image, plot_sweep, write_overlays
 from detector.evaluation.predictors import Predictor
 from naoslam.atomic import write_json
 from naoslam.camera import NAO_HFOV_DEG
@@ -46,12 +46,19 @@ def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", c
                "precision": precision, "recall": recall, "f1": f1, **counts,
                "mean_iou": _mean_tp_iou(images, conf), "best_f1_conf": best["conf"], "best_f1": best["f1"],
                "sweep": sweep, "per_image": [{"image": i.name, **i.counts(conf)} for i in images]}
+    confusion = confusion_matrix(images, conf, CLASSES)
+    metrics["confusion"] = {"labels": [*CLASSES, "none"], "rows": "true", "columns": "detected",
+                            "counts": confusion.tolist()}
+    outcomes = [outcome(image, conf) for image in images]
+    metrics["class_swaps"] = sum(len(o.swaps) for o in outcomes)
+    metrics["duplicates"] = sum(len(o.duplicates) for o in outcomes)
     metrics.update(map_scores(images, CLASSES) or {})
     metrics.update(_measurement_errors(images, conf, predictor))
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     plot_per_image(metrics["per_image"], out / "per_image.png", predictor.name)
     plot_sweep(sweep, out / "sweep.png", predictor.name)
+    plot_confusion(confusion, CLASSES, out / "confusion.png", predictor.name)
     metrics["overlays"] = write_overlays(images, frames, conf, out / "errors")
     write_json(out / "metrics.json", metrics)
     return metrics
@@ -120,6 +127,7 @@ def _localisation(m: dict) -> str:
 TABLE_ROWS = {
     "images": lambda m: str(m["images"]),
     "TP / FP / FN / TN": lambda m: f"{m['tp']} / {m['fp']} / {m['fn']} / {m['tn']}",
+    "FP: class swaps / duplicates": lambda m: f"{m['class_swaps']} / {m['duplicates']}",
     "precision": lambda m: f"{100 * m['precision']:.1f} %",
     "recall": lambda m: f"{100 * m['recall']:.1f} %",
     "localisation": _localisation,
