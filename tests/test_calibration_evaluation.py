@@ -153,7 +153,10 @@ def test_confusion_matrix_separates_swaps_duplicates_and_misses():
     image = evaluate_image("a.jpg", ["bp", "pg", "py"], [left, middle, right], [None] * 3,
                            _prediction(["bp", "gp", "pb", "yp"], [left, left, middle, _rectangle(70)],
                                        [0.9, 0.8, 0.7, 0.6]))
-    matrix = confusion_matrix([image], 0.5, CLASSES)
+    result = outcome(image, 0.5)
+    assert (result.matches, result.swaps, result.duplicates, result.strays, result.missed) == \
+        ([(0, 0)], [(2, 1)], [1], [3], [2])
+    matrix = confusion_matrix([image], [result], CLASSES)
     bp, gp, yp, pb, pg, py, none = range(7)
     expected = np.zeros((7, 7), dtype=int)
     expected[bp, bp] = 1  # the true positive
@@ -162,9 +165,6 @@ def test_confusion_matrix_separates_swaps_duplicates_and_misses():
     expected[none, yp] = 1  # nothing there
     expected[py, none] = 1  # missed
     assert (matrix == expected).all()
-    result = outcome(image, 0.5)
-    assert (result.matches, result.swaps, result.duplicates, result.strays, result.missed) == \
-        ([(0, 0)], [(2, 1)], [1], [3], [2])
     counts = image.counts(0.5)
     assert counts["fp"] == matrix[:, :6].sum() - np.trace(matrix) and counts["fn"] == matrix[:6].sum() - np.trace(matrix)
 

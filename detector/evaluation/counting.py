@@ -117,8 +117,9 @@ def outcome(image: ImageEvaluation, conf: float) -> Outcome:
                    [int(r) for r in left_r if r not in swapped_r])
 
 
-def confusion_matrix(images: list[ImageEvaluation], conf: float, classes: tuple[str, ...]) -> np.ndarray:
-    """Counts at ``conf``: rows are the true class, then "none"; columns the detected class, then "none".
+def confusion_matrix(images: list[ImageEvaluation], outcomes: list[Outcome], classes: tuple[str, ...]) -> np.ndarray:
+    """Counts from each image's ``outcome``: rows are the true class, then "none"; columns the detected class, then
+    "none".
 
     Matches fill the diagonal and swaps lie off it; duplicates and strays (detections on no free label) fill the
     "none" row, missed labels the "none" column. The thesis's FP is everything off the diagonal in the class
@@ -126,8 +127,7 @@ def confusion_matrix(images: list[ImageEvaluation], conf: float, classes: tuple[
     """
     none = len(classes)
     matrix = np.zeros((none + 1, none + 1), dtype=int)
-    for image in images:
-        result = outcome(image, conf)
+    for image, result in zip(images, outcomes, strict=True):
         truth, detected = image.truth_classes, image.prediction.classes
         for p, r in result.matches + result.swaps:
             matrix[classes.index(truth[r]), classes.index(detected[p])] += 1

@@ -46,10 +46,10 @@ def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", c
                "precision": precision, "recall": recall, "f1": f1, **counts,
                "mean_iou": _mean_tp_iou(images, conf), "best_f1_conf": best["conf"], "best_f1": best["f1"],
                "sweep": sweep, "per_image": [{"image": i.name, **i.counts(conf)} for i in images]}
-    confusion = confusion_matrix(images, conf, CLASSES)
+    outcomes = [outcome(image, conf) for image in images]
+    confusion = confusion_matrix(images, outcomes, CLASSES)
     metrics["confusion"] = {"labels": [*CLASSES, "none"], "rows": "true", "columns": "detected",
                             "counts": confusion.tolist()}
-    outcomes = [outcome(image, conf) for image in images]
     metrics["class_swaps"] = sum(len(o.swaps) for o in outcomes)
     metrics["duplicates"] = sum(len(o.duplicates) for o in outcomes)
     metrics.update(map_scores(images, CLASSES) or {})
