@@ -3,8 +3,9 @@
 torch's intra-op threads spin while they wait for each other (libgomp's default), which is fastest on idle cores.
 Beside another program at the same priority a spinning thread burns the time slice its descheduled partner needs,
 and two threads end up slower than one. ``OMP_WAIT_POLICY=PASSIVE`` makes waiting threads sleep instead
-(``benchmarks/bench_busy_train.py``: beside one CPU hog 3.8 -> 5.9 images/s, idle 10.6 -> 8.4). libgomp reads the
-policy once, when it is loaded, so it can only be chosen before the first ``import torch``.
+(``benchmarks/bench_busy_train.py``, two clean runs: beside one CPU hog 4.3 -> 6.4 and 4.2 -> 6.0 images/s, idle
+11.4 -> 10.4 and 10.8 -> 9.8), so ``poles train`` and ``poles demo`` sleep by default. libgomp reads the policy
+once, when it is loaded, so it can only be chosen before the first ``import torch``.
 """
 from __future__ import annotations
 

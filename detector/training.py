@@ -22,6 +22,8 @@ from detector.training_curves import best_epoch, plot_training_curves
 
 #: Segmentation models that can be built from their YAML without a download.
 MODELS = ("yolov8n-seg", "yolov8s-seg", "yolov8m-seg")
+
+
 @dataclass(frozen=True)
 class TrainSettings:
     """What ``poles train`` passes to Ultralytics. Defaults are the thesis's (YOLOv8s, 640 px)."""

@@ -53,10 +53,11 @@ def test_shared_machine_wait_policy_is_set_only_before_torch_loads():
     assert out.stdout.split() == ["True", "PASSIVE", "False", "None"]
 
 
-def test_threads_option_accepts_counts_auto_and_shared():
+def test_threads_option_defaults_to_sleeping_threads_and_accepts_counts_all_and_auto():
     from detector.cli import build_parser
 
     parse = build_parser().parse_args
-    assert [parse(["train", "--data", "d", "--out", "o", "--threads", t]).threads for t in ("2", "auto", "shared")] == \
-        [2, "auto", "shared"]
-    assert [parse(["demo", *extra]).threads for extra in ([], ["--threads", "shared"])] == ["all", "shared"]
+    train = ["train", "--data", "d", "--out", "o"]
+    assert [parse([*train, *extra]).threads for extra in ([], ["--threads", "2"], ["--threads", "all"],
+                                                           ["--threads", "auto"])] == ["shared", 2, "all", "auto"]
+    assert [parse(["demo", *extra]).threads for extra in ([], ["--threads", "all"])] == ["shared", "all"]
