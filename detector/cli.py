@@ -113,7 +113,7 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--batch", type=int, default=8)
     train.add_argument("--patience", type=int, default=50, help="stop after this many epochs without improvement")
     train.add_argument("--seed", type=int, default=0)
-    train.add_argument("--threads", type=_threads, default="shared",
+    train.add_argument("--threads", type=_threads,
                        help="torch threads: `shared` (default): every core, waiting threads sleep, so other programs "
                             "on the machine do not slow training down many times over; `all`: every core, waiting "
                             "threads spin (about 10 %% faster on an idle machine); a number; `auto` to re-time the "
@@ -122,6 +122,9 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--no-cache", action="store_true", help="do not cache decoded images in RAM")
     train.add_argument("--device", default="cpu",
                        help="cpu (default), a GPU index such as 0, several such as 0,1 (Ultralytics' DDP), or mps")
+    train.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="hyperparameters",
+                       help="any other Ultralytics training argument, e.g. --set lr0=0.0002 --set mosaic=0; repeat "
+                            "for each (checked by Ultralytics; the flags above cannot be set this way)")
     train.add_argument("--resume", action="store_true", help="continue the interrupted run in --out")
 
     export = sub.add_parser("export", help="export to ONNX (FP32, optional INT8), verified against PyTorch")
@@ -223,7 +226,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--budget", choices=("fast", "full"), default="fast",
                       help="fast: about 15 minutes on two cores (default); full: the thesis's settings (days)")
     demo.add_argument("--seed", type=int, default=0)
-    demo.add_argument("--threads", choices=("shared", "all"), default="shared",
+    demo.add_argument("--threads", choices=("shared", "all"),
                       help="shared (default): every core, waiting threads sleep, so other programs do not slow "
                            "training down many times over; all: every core, waiting threads spin (about 10 %% faster "
                            "on an idle machine)")
@@ -351,16 +354,21 @@ def _split(args: argparse.Namespace) -> int:
 
 
 def _choose_wait_policy(threads: int | str | None) -> None:
-    """``--threads shared`` (the default): let OpenMP threads sleep while they wait; must run before torch loads."""
-    if threads == "shared" and not sleep_while_waiting():
+    """Let OpenMP threads sleep while they wait, by default (None) and for ``--threads shared``; must run before
+    torch loads. Only an explicit ``--threads shared`` says so when it came too late (a caller that loaded torch)."""
+    if threads not in (None, "shared"):
+        return
+    if not sleep_while_waiting() and threads == "shared":
         print("--threads shared: torch was loaded already, OpenMP keeps its wait policy", file=sys.stderr)
 
 
 def _train(args: argparse.Namespace) -> int:
     _choose_wait_policy(args.threads)
     from detector.starting_point import starting_point
-    from detector.training import TrainSettings, summarise_run, train_model
+    from detector.training import TrainSettings, parse_hyperparameters, summarise_run, train_model
 
+    if args.resume and args.hyperparameters:
+        raise ValueError("--set with --resume: a resumed run keeps the arguments it started with - drop --set")
     model, weights = (args.model or "", None) if args.resume else starting_point(args.model, args.weights)
     if not args.resume:
         print(f"starting from {weights or f'{model}.yaml (no pretrained weights)'}")
@@ -368,7 +376,8 @@ def _train(args: argparse.Namespace) -> int:
     settings = TrainSettings(model=model or "yolov8n-seg", epochs=args.epochs, imgsz=args.imgsz, batch=args.batch,
                              patience=args.patience, seed=args.seed, threads=threads,
                              adaptive_threads=args.threads == "auto", workers=args.workers,
-                             cache=not args.no_cache, time_hours=args.time, device=args.device)
+                             cache=not args.no_cache, time_hours=args.time, device=args.device,
+                             hyperparameters=parse_hyperparameters(args.hyperparameters))
     run = train_model(args.data, args.out, settings, weights=weights, resume=args.resume)
     best = summarise_run(run)
     print(f"best epoch {best['best_epoch']} of {best['epochs']} (validation): mask mAP50 {best['mAP50(M)']:.3f}, "

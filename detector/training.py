@@ -7,14 +7,16 @@ loaded from a local checkpoint, AMP checks and plots (which fetch a font) are of
 """
 from __future__ import annotations
 
+import difflib
 import os
 import shutil
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from ultralytics import YOLO
+from ultralytics.cfg import check_cfg, smart_value
 from ultralytics.models.yolo.segment import SegmentationTrainer
-from ultralytics.utils import DEFAULT_CFG, torch_utils
+from ultralytics.utils import DEFAULT_CFG, DEFAULT_CFG_DICT, torch_utils
 
 from detector.cpu_threads import ThreadTuner
 from detector.datasets.intake import open_dataset, training_view
@@ -22,6 +24,12 @@ from detector.training_curves import best_epoch, plot_training_curves
 
 #: Segmentation models that can be built from their YAML without a download.
 MODELS = ("yolov8n-seg", "yolov8s-seg", "yolov8m-seg")
+#: Ultralytics training arguments that ``poles train`` sets itself (its own flag, or fixed for an offline CPU run).
+MANAGED_ARGUMENTS = {"data": "--data", "project": "--out", "name": "--out", "exist_ok": "--out", "model": "--model",
+                     "epochs": "--epochs", "time": "--time", "imgsz": "--imgsz", "batch": "--batch",
+                     "patience": "--patience", "seed": "--seed", "workers": "--workers", "cache": "--no-cache",
+                     "device": "--device", "resume": "--resume", "save_dir": "--out", "amp": "", "plots": "",
+                     "deterministic": "", "mode": "", "task": "", "cfg": ""}
 
 
 @dataclass(frozen=True)
@@ -42,6 +50,8 @@ class TrainSettings:
     device: str = "cpu"
     #: Let ``ThreadTuner`` pick the thread count by timing batches (``--threads auto``); off by default (see README).
     adaptive_threads: bool = False
+    #: Further Ultralytics training arguments (``--set lr0=0.0002``), already typed; see ``parse_hyperparameters``.
+    hyperparameters: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.model not in MODELS:
@@ -53,6 +63,34 @@ class TrainSettings:
             raise ValueError(f"--time {self.time_hours} must be a positive number of hours")
         if self.imgsz % 32:
             raise ValueError(f"--imgsz {self.imgsz} is not a multiple of the model stride 32 (try {self.imgsz // 32 * 32 or 32})")
+
+
+def parse_hyperparameters(pairs: list[str]) -> dict:
+    """``KEY=VALUE`` strings as Ultralytics training arguments, typed and checked as Ultralytics' ``yolo`` CLI does.
+
+    Refuses a key Ultralytics does not know (naming the closest ones) and a key ``poles train`` sets itself (naming
+    its flag), so a typo cannot be silently ignored and a flag cannot be silently overridden.
+    """
+    hyperparameters = {}
+    for pair in pairs:
+        key, equals, text = pair.partition("=")
+        key = key.strip()
+        if not equals or not key:
+            raise ValueError(f"--set {pair!r}: write KEY=VALUE, e.g. --set lr0=0.0002")
+        if key in MANAGED_ARGUMENTS:
+            flag = MANAGED_ARGUMENTS[key]
+            raise ValueError(f"--set {key}: poles train sets {key} itself" + (f" - use {flag}" if flag else ""))
+        if key not in DEFAULT_CFG_DICT:
+            close = difflib.get_close_matches(key, DEFAULT_CFG_DICT, n=3)
+            raise ValueError(f"--set {key}: not an Ultralytics training argument"
+                             + (f" - did you mean {', '.join(close)}?" if close else ""))
+        value = smart_value(text.strip())
+        try:
+            check_cfg({key: value})
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"--set {pair}: {str(exc).splitlines()[0]}") from None
+        hyperparameters[key] = value
+    return hyperparameters
 
 
 def use_all_cores(threads: int | None = None) -> int:
@@ -104,6 +142,7 @@ def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | 
         for name in ("model", "threads", "adaptive_threads"):
             options.pop(name)
         options["time"] = options.pop("time_hours")
+        options.update(options.pop("hyperparameters"))
         _train(model, tuner, data=str(data_yaml), project=str(out.parent), name=out.name, exist_ok=True,
                amp=False, plots=False, deterministic=True, trainer=CpuSegmentationTrainer, **options)
     plot_training_curves(out / "results.csv", out / "training_curves.png")

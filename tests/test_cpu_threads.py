@@ -53,11 +53,28 @@ def test_shared_machine_wait_policy_is_set_only_before_torch_loads():
     assert out.stdout.split() == ["True", "PASSIVE", "False", "None"]
 
 
-def test_threads_option_defaults_to_sleeping_threads_and_accepts_counts_all_and_auto():
+def test_threads_option_accepts_counts_shared_all_and_auto():
     from detector.cli import build_parser
 
     parse = build_parser().parse_args
-    train = ["train", "--data", "d", "--out", "o"]
-    assert [parse([*train, *extra]).threads for extra in ([], ["--threads", "2"], ["--threads", "all"],
-                                                           ["--threads", "auto"])] == ["shared", 2, "all", "auto"]
-    assert [parse(["demo", *extra]).threads for extra in ([], ["--threads", "all"])] == ["shared", "all"]
+    train = ["train", "--data", "d", "--out", "o", "--threads"]
+    assert [parse([*train, t]).threads for t in ("2", "shared", "all", "auto")] == [2, "shared", "all", "auto"]
+    assert [parse(["demo", "--threads", t]).threads for t in ("shared", "all")] == ["shared", "all"]
+
+
+@pytest.mark.parametrize("argv, policy", [(["train", "--data", "d", "--out", "o"], "PASSIVE"),
+                                          (["train", "--data", "d", "--out", "o", "--threads", "shared"], "PASSIVE"),
+                                          (["train", "--data", "d", "--out", "o", "--threads", "all"], "None"),
+                                          (["demo"], "PASSIVE"), (["demo", "--threads", "all"], "None")])
+def test_waiting_threads_sleep_unless_told_all(argv, policy):
+    """What the command sets before torch loads: sleeping threads by default, libgomp's spinning for `all`."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("import os, sys; from detector.cli import build_parser, _choose_wait_policy; "
+            f"_choose_wait_policy(build_parser().parse_args({argv!r}).threads); "
+            "print('torch' in sys.modules, os.environ.get('OMP_WAIT_POLICY'))")
+    env = {k: v for k, v in os.environ.items() if k != "OMP_WAIT_POLICY"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
+    assert out.stdout.split() == ["False", policy]

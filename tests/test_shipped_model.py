@@ -16,7 +16,7 @@ from detector.cli import main
 from detector.synth.render import render_scene
 from detector.synth.scene import calibration_scene
 from detector.starting_point import SHIPPED_WEIGHTS
-from detector.training import TrainSettings, train_model
+from detector.training import TrainSettings, parse_hyperparameters, train_model
 from export.ship import SIZE_BUDGET
 from naoslam.camera import PinholeCamera
 from naoslam.detector import LandmarkDetector
@@ -120,6 +120,37 @@ def test_device_passes_through_to_ultralytics(synth_dataset, tmp_path, monkeypat
     with pytest.raises(Stop):
         train_model(synth_dataset, tmp_path / "run", TrainSettings(model="yolov8n-seg", device="0,1"))
     assert seen["device"] == "0,1"
+
+
+def test_set_passes_ultralytics_training_arguments_through_typed(synth_dataset, tmp_path, monkeypatch):
+    from ultralytics import YOLO
+
+    seen = {}
+
+    class Stop(Exception):
+        pass
+
+    def capture(self, **kwargs):
+        seen.update(kwargs)
+        raise Stop
+
+    monkeypatch.setattr(YOLO, "train", capture)
+    hyperparameters = parse_hyperparameters(["mosaic=0", "lr0=2e-4", "optimizer=AdamW"])
+    with pytest.raises(Stop):
+        train_model(synth_dataset, tmp_path / "run", TrainSettings(model="yolov8n-seg", hyperparameters=hyperparameters))
+    assert (seen["mosaic"], seen["lr0"], seen["optimizer"], seen["device"]) == (0, 0.0002, "AdamW", "cpu")
+
+
+@pytest.mark.parametrize("pair, message", [("lr=0.1", "not an Ultralytics training argument - did you mean lrf, lr0?"),
+                                           ("epochs=3", "poles train sets epochs itself - use --epochs"),
+                                           ("mosaic=2", "between 0.0 and 1.0"), ("lr0", "write KEY=VALUE")])
+def test_set_refuses_unknown_managed_and_out_of_range_arguments_in_one_line(pair, message, synth_dataset, tmp_path,
+                                                                            capsys):
+    argv = ["train", "--data", str(synth_dataset), "--out", str(tmp_path / "run"), "--set", pair]
+    assert main(argv) == 2
+    error = capsys.readouterr().err
+    assert message in error and len(error.strip().splitlines()) == 1
+    assert not (tmp_path / "run").exists()
 
 
 def test_evaluate_uses_the_shipped_model_at_its_threshold(synth_dataset, tmp_path):
