@@ -104,25 +104,7 @@ def test_train_fine_tunes_from_the_shipped_weights_unless_told_scratch(weights, 
     assert model.endswith(SHIPPED_WEIGHTS.name if weights is None else "yolov8n-seg.yaml")
 
 
-def test_device_passes_through_to_ultralytics(synth_dataset, tmp_path, monkeypatch):
-    from ultralytics import YOLO
-
-    seen = {}
-
-    class Stop(Exception):
-        pass
-
-    def capture(self, **kwargs):
-        seen.update(kwargs)
-        raise Stop
-
-    monkeypatch.setattr(YOLO, "train", capture)
-    with pytest.raises(Stop):
-        train_model(synth_dataset, tmp_path / "run", TrainSettings(model="yolov8n-seg", device="0,1"))
-    assert seen["device"] == "0,1"
-
-
-def test_set_passes_ultralytics_training_arguments_through_typed(synth_dataset, tmp_path, monkeypatch):
+def test_device_and_set_pass_through_to_ultralytics_typed(synth_dataset, tmp_path, monkeypatch):
     from ultralytics import YOLO
 
     seen = {}
@@ -137,8 +119,9 @@ def test_set_passes_ultralytics_training_arguments_through_typed(synth_dataset, 
     monkeypatch.setattr(YOLO, "train", capture)
     hyperparameters = parse_hyperparameters(["mosaic=0", "lr0=2e-4", "optimizer=AdamW"])
     with pytest.raises(Stop):
-        train_model(synth_dataset, tmp_path / "run", TrainSettings(model="yolov8n-seg", hyperparameters=hyperparameters))
-    assert (seen["mosaic"], seen["lr0"], seen["optimizer"], seen["device"]) == (0, 0.0002, "AdamW", "cpu")
+        train_model(synth_dataset, tmp_path / "run", TrainSettings(model="yolov8n-seg", device="0,1",
+                                                                   hyperparameters=hyperparameters))
+    assert (seen["device"], seen["mosaic"], seen["lr0"], seen["optimizer"]) == ("0,1", 0, 0.0002, "AdamW")
 
 
 @pytest.mark.parametrize("pair, message", [("lr=0.1", "not an Ultralytics training argument - did you mean lrf, lr0?"),
