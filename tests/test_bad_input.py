@@ -385,7 +385,7 @@ def test_an_interrupted_command_leaves_nothing_and_says_one_line(signal_name, st
     out = tmp_path / "out"
     process = subprocess.Popen([sys.executable, "-c", "import sys; from detector.cli import main; sys.exit(main())",
                                 "synth", "--out", str(out), "--images", "5000", "--workers", "1", "--size", "160x120"],
-                               stderr=subprocess.PIPE, text=True, restore_signals=True,
+                               stderr=subprocess.PIPE, text=True,
                                # as from a terminal: a runner started in the background ignores SIGINT, and a child
                                # would inherit that (Python keeps an inherited SIG_IGN)
                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
