@@ -16,8 +16,9 @@ from detector.preview import contact_sheet, draw_instances
 from detector.synth.backdrops import load_backdrop, sample_look
 from detector.synth.effects import apply_camera_effects, camera_effects
 from detector.synth.floor import floor_of
-from detector.synth.render import MIN_BAND_PIXELS, MIN_BAND_SHARE, render_scene
-from detector.synth.scene import SceneConfig, calibration_scene, sample_scene
+from detector.synth.readable import misread_bands
+from detector.synth.render import MIN_BAND_PIXELS, MIN_BAND_SHARE, Frame, render_scene
+from detector.synth.scene import Scene, SceneConfig, calibration_scene, sample_scene
 from naoslam.camera import PinholeCamera
 from naoslam.landmarks import CLASSES
 
@@ -28,6 +29,8 @@ CALIBRATION_ANGLES_DEG = (0.0, -10.0, 10.0, -20.0, 20.0)
 #: A landmark with fewer visible pixels than this is too small to annotate (and to learn from).
 MIN_LABEL_PIXELS = 15
 PREVIEW_IMAGES = 12
+#: Scenes drawn at most for one frame while a labelled pole's band reads as another colour.
+MAX_DRAWS = 6
 
 
 @dataclass(frozen=True)
@@ -69,6 +72,8 @@ class RenderedSample:
     width: int
     height: int
     backdrop: str | None
+    #: How many scenes were drawn and rejected before this one (a labelled pole read as another colour).
+    redraws: int
 
 
 def split_names(n: int, seed: int) -> list[str]:
@@ -83,35 +88,28 @@ _EFFECTS = None
 
 
 def render_one(job: SynthJob, index: int) -> RenderedSample:
-    """Render image ``index`` of the job; depends only on (job, index), never on the worker."""
+    """Render image ``index`` of the job; depends only on (job, index), never on the worker.
+
+    A frame in which a labelled pole's band reads as another colour (``readable.misread_bands``) is drawn again as a
+    new scene, up to ``MAX_DRAWS`` times; if the last draw still has such poles, they stay unlabelled.
+    """
     global _EFFECTS
     if _EFFECTS is None:
         _EFFECTS = camera_effects()
-    rng = np.random.default_rng([job.seed, index])
-    camera = job.camera
     backdrop_path = _pick_backdrop(job, index)
-    if backdrop_path is not None:
-        backdrop = load_backdrop(backdrop_path)
-        camera = PinholeCamera(backdrop.shape[1], backdrop.shape[0], job.hfov_deg)
-        floor = floor_of(backdrop_path)
-        scene = sample_scene(rng, camera, job.config, goal_posts_in_view=False, floor=floor)
-        frame = render_scene(scene, job.config.pole, backdrop=backdrop, look=sample_look(rng, backdrop), floor=floor)
-    elif job.calibration_shots:
-        # Ranges vary fastest, so any number of shots covers every distance.
-        range_m = CALIBRATION_RANGES_M[index % len(CALIBRATION_RANGES_M)]
-        angle = CALIBRATION_ANGLES_DEG[(index // len(CALIBRATION_RANGES_M)) % len(CALIBRATION_ANGLES_DEG)]
-        scene = calibration_scene(rng, camera, CLASSES[index % len(CLASSES)], range_m, angle, job.config)
-    else:
-        scene = sample_scene(rng, camera, job.config)
-    if backdrop_path is None:
-        frame = render_scene(scene, job.config.pole)
-    image = apply_camera_effects(_EFFECTS, (frame.image * 255.0 + 0.5).astype(np.uint8), scene.effects_seed)
+    for draw in range(MAX_DRAWS):
+        rng = np.random.default_rng([job.seed, index] if draw == 0 else [job.seed, index, draw])
+        scene, frame, camera = _draw_scene(job, index, rng, backdrop_path)
+        image = apply_camera_effects(_EFFECTS, (frame.image * 255.0 + 0.5).astype(np.uint8), scene.effects_seed)
+        labelled = [pole for pole in frame.poles if pole.mask.sum() >= MIN_LABEL_PIXELS and pole.nameable]
+        misread = {id(pole) for pole in labelled if misread_bands(image, pole.cls, pole.band_masks)}
+        if not misread:
+            break
+    labelled = [pole for pole in labelled if id(pole) not in misread]
     ok, encoded = cv2.imencode(".jpg", cv2.cvtColor(image, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, scene.jpeg_quality])
     instances, truth = [], []
     size = np.array([camera.width, camera.height], np.float64)
-    for pole in frame.poles:
-        if pole.mask.sum() < MIN_LABEL_PIXELS or not pole.nameable:
-            continue
+    for pole in labelled:
         polygon = mask_to_polygon(pole.mask)
         if polygon is None:
             continue
@@ -126,7 +124,28 @@ def render_one(job: SynthJob, index: int) -> RenderedSample:
     camera_info = {"x": round(pose.x, 4), "y": round(pose.y, 4), "height_m": round(pose.z, 4), "yaw_rad": round(pose.yaw, 5),
                    "pitch_rad": round(pose.pitch, 5), "roll_rad": round(pose.roll, 5)}
     return RenderedSample(index, encoded.tobytes(), instances, truth, camera_info, camera.width, camera.height,
-                          backdrop_path.name if backdrop_path is not None else None)
+                          backdrop_path.name if backdrop_path is not None else None, draw)
+
+
+def _draw_scene(job: SynthJob, index: int, rng: np.random.Generator,
+                backdrop_path: Path | None) -> tuple[Scene, Frame, PinholeCamera]:
+    """One scene for frame ``index`` drawn from ``rng``, rendered (before the camera effects), and its camera."""
+    camera = job.camera
+    if backdrop_path is not None:
+        backdrop = load_backdrop(backdrop_path)
+        camera = PinholeCamera(backdrop.shape[1], backdrop.shape[0], job.hfov_deg)
+        floor = floor_of(backdrop_path)
+        scene = sample_scene(rng, camera, job.config, goal_posts_in_view=False, floor=floor)
+        return scene, render_scene(scene, job.config.pole, backdrop=backdrop, look=sample_look(rng, backdrop),
+                                   floor=floor), camera
+    if job.calibration_shots:
+        # Ranges vary fastest, so any number of shots covers every distance.
+        range_m = CALIBRATION_RANGES_M[index % len(CALIBRATION_RANGES_M)]
+        angle = CALIBRATION_ANGLES_DEG[(index // len(CALIBRATION_RANGES_M)) % len(CALIBRATION_ANGLES_DEG)]
+        scene = calibration_scene(rng, camera, CLASSES[index % len(CLASSES)], range_m, angle, job.config)
+    else:
+        scene = sample_scene(rng, camera, job.config)
+    return scene, render_scene(scene, job.config.pole), camera
 
 
 def _pick_backdrop(job: SynthJob, index: int) -> Path | None:
@@ -160,6 +179,7 @@ def generate_dataset(out: str | Path, job: SynthJob, *, workers: int | None = No
             writer.add(splits[sample.index], name, sample.jpeg, sample.instances)
             annotations["images"][name] = {"split": splits[sample.index], "width": sample.width,
                                            "height": sample.height, "camera": sample.camera, "backdrop": sample.backdrop,
+                                           "redraws": sample.redraws,
                                            "landmarks": sample.truth}
             if preview and len(tiles) < PREVIEW_IMAGES:
                 image = cv2.imdecode(np.frombuffer(sample.jpeg, np.uint8), cv2.IMREAD_COLOR)
@@ -192,4 +212,6 @@ ANNOTATION_FIELDS = {
     "pixels": "visible mask area in pixels",
     "camera": "camera position on the field, height, yaw, pitch (down positive), roll",
     "backdrop": "file name of the real frame the objects were drawn over (null: the modelled room)",
+    "redraws": "scenes drawn and rejected for this frame because a labelled pole's band read as another colour in the "
+               f"pixels (at most {MAX_DRAWS - 1}; poles still misread after that are left unlabelled)",
 }

@@ -41,10 +41,9 @@ class Hit:
     colour: np.ndarray
     axial: np.ndarray | None = None
 
-    def band_pixels(self, z0: float, z1: float, shown: np.ndarray | None = None) -> int:
-        """How many covered pixels (of ``shown``, a mask over this hit's box, if given) show axis heights z0..z1."""
-        inside = self.mask & (self.axial >= z0) & (self.axial <= z1)
-        return int((inside & shown).sum() if shown is not None else inside.sum())
+    def band_pixels(self, z0: float, z1: float) -> int:
+        """How many covered pixels show axis heights z0..z1."""
+        return int((self.mask & (self.axial >= z0) & (self.axial <= z1)).sum())
 
 
 def pixel_box(points_world: np.ndarray, pose: CameraPose, camera: PinholeCamera, clip: bool) -> tuple[int, int, int, int] | None:

@@ -37,6 +37,8 @@ class PoleTruth:
     #: Visible pixels of the upper and the lower coloured band, and of each band's whole silhouette (uncut, unhidden).
     band_pixels_shown: tuple[int, ...]
     band_pixels_whole: tuple[int, ...]
+    #: The visible pixels of the upper and the lower coloured band, as masks over the frame.
+    band_masks: tuple[np.ndarray, ...]
 
     @property
     def nameable(self) -> bool:
@@ -91,10 +93,12 @@ def render_scene(scene: Scene, geometry: PoleGeometry = PoleGeometry(), backdrop
         divide = _project(scene, cylinder.point_on_axis(geometry.divide_height))
         upper = _project(scene, cylinder.point_on_axis(geometry.divide_height + geometry.band_height / 2))
         lower = _project(scene, cylinder.point_on_axis(geometry.divide_height - geometry.band_height / 2))
+        band_masks = _band_masks(cylinder, hits[index], visible)
+        band_pixels_whole = tuple(full.band_pixels(z0, z1) if full is not None else 0 for z0, z1 in _bands(cylinder))
         poles.append(PoleTruth(cylinder.label, visible, range_m, bearing, float(visible.sum()) / max(full_area, 1),
                                in_image_area < full_area, divide, float(math.dist(upper, lower)),
                                (float(cylinder.base[0]), float(cylinder.base[1])),
-                               *_band_pixels(cylinder, hits[index], full, visible)))
+                               tuple(int(mask.sum()) for mask in band_masks), band_pixels_whole, band_masks))
     if backdrop is not None:
         colour = composite(backdrop, colour, owner >= 0, look)
     return Frame(np.clip(colour, 0.0, 1.0), poles)
@@ -120,14 +124,21 @@ def _hide_behind_frame_content(scene: Scene, objects: list, floor: FloorMap, own
         owner[shown & floor.in_front_of(foot_row)] = -1
 
 
-def _band_pixels(cylinder: Cylinder, hit: Hit, full: Hit | None,
-                 visible: np.ndarray) -> tuple[tuple[int, ...], tuple[int, ...]]:
-    """Visible pixels of each coloured band (above the base, top first), and its pixels in the uncut, unhidden view."""
+def _bands(cylinder: Cylinder) -> list[tuple[float, float]]:
+    """The axis heights of the coloured bands above the base, top band first."""
+    return [(z0, z1) for z0, z1, _ in reversed(cylinder.bands[1:])]
+
+
+def _band_masks(cylinder: Cylinder, hit: Hit, visible: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The visible pixels of each coloured band (top first) as masks over the frame."""
     h, w = hit.mask.shape
-    shown = visible[hit.v0:hit.v0 + h, hit.u0:hit.u0 + w]
-    bands = [(z0, z1) for z0, z1, _ in reversed(cylinder.bands[1:])]
-    return (tuple(hit.band_pixels(z0, z1, shown) for z0, z1 in bands),
-            tuple(full.band_pixels(z0, z1) if full is not None else 0 for z0, z1 in bands))
+    region = (slice(hit.v0, hit.v0 + h), slice(hit.u0, hit.u0 + w))
+    masks = []
+    for z0, z1 in _bands(cylinder):
+        mask = np.zeros_like(visible)
+        mask[region] = hit.mask & (hit.axial >= z0) & (hit.axial <= z1) & visible[region]
+        masks.append(mask)
+    return tuple(masks)
 
 
 def _in_image_area(hit: Hit | None, width: int, height: int) -> int:
