@@ -34,11 +34,15 @@ class PoleTruth:
     band_divide_px: tuple[float, float]
     band_centre_distance_px: float
     position_m: tuple[float, float]
-    #: Visible pixels of the upper and the lower coloured band, and of each band's whole silhouette (uncut, unhidden).
-    band_pixels_shown: tuple[int, ...]
+    #: Pixels of the upper and the lower coloured band's whole silhouette (uncut, unhidden).
     band_pixels_whole: tuple[int, ...]
     #: The visible pixels of the upper and the lower coloured band, as masks over the frame.
     band_masks: tuple[np.ndarray, ...]
+
+    @property
+    def band_pixels_shown(self) -> tuple[int, ...]:
+        """Visible pixels of the upper and the lower coloured band."""
+        return tuple(int(mask.sum()) for mask in self.band_masks)
 
     @property
     def nameable(self) -> bool:
@@ -98,7 +102,7 @@ def render_scene(scene: Scene, geometry: PoleGeometry = PoleGeometry(), backdrop
         poles.append(PoleTruth(cylinder.label, visible, range_m, bearing, float(visible.sum()) / max(full_area, 1),
                                in_image_area < full_area, divide, float(math.dist(upper, lower)),
                                (float(cylinder.base[0]), float(cylinder.base[1])),
-                               tuple(int(mask.sum()) for mask in band_masks), band_pixels_whole, band_masks))
+                               band_pixels_whole, band_masks))
     if backdrop is not None:
         colour = composite(backdrop, colour, owner >= 0, look)
     return Frame(np.clip(colour, 0.0, 1.0), poles)
