@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from detector.cli import main
-from detector.synth.backdrops import FEATHER_REACH_PX, RENDER_MIN_WIDTH, composite, load_backdrop, sample_look, scan_backdrops
+from detector.synth.backdrops import (FEATHER_REACH_PX, RENDER_MIN_WIDTH, composite, frame_cast, load_backdrop, sample_look,
+                                      scan_backdrops)
 from detector.synth.generate import SynthJob, generate_dataset
 from detector.synth.render import render_scene
 from detector.synth.scene import sample_scene
@@ -63,6 +64,29 @@ def test_composite_changes_only_the_objects_and_their_soft_edges():
     inside = coverage & _far_from(~coverage, FEATHER_REACH_PX)
     assert np.abs(result[inside] - backdrop[inside]).mean() > 0.05
     assert np.array_equal(backdrop, backdrop.copy())  # the input is not modified
+
+
+def _carpet_with_lines(line_rgb: tuple[float, float, float]) -> np.ndarray:
+    """A green carpet (with pile noise) crossed by field lines of ``line_rgb``: an SPL frame in miniature."""
+    rng = np.random.default_rng(4)
+    frame = np.clip(np.array([0.18, 0.45, 0.2]) + rng.normal(0, 0.03, (120, 160, 3)), 0, 1)
+    frame[50:53, :] = line_rgb
+    frame[:, 100:103] = line_rgb
+    return frame.astype(np.float32)
+
+
+def test_the_cast_is_read_from_the_white_lines_not_from_the_green_carpet():
+    assert np.allclose(frame_cast(_carpet_with_lines((0.8, 0.8, 0.8))), 1.0, atol=0.01)
+    warm = frame_cast(_carpet_with_lines((0.9, 0.8, 0.6)))
+    assert np.allclose(warm, np.array([0.9, 0.8, 0.6]) / 0.7667, atol=0.01)
+    grey_world = _carpet_with_lines((0.8, 0.8, 0.8)).reshape(-1, 3).mean(axis=0)
+    assert grey_world[1] / grey_world.mean() > 1.3  # what the frame's mean colour would have claimed
+
+
+def test_clipped_pixels_do_not_set_the_cast():
+    frame = _carpet_with_lines((0.7, 0.7, 0.8))
+    frame[:10, :10] = (1.0, 1.0, 0.5)  # a blown-out yellow lamp
+    assert frame_cast(frame)[2] > 1.0 and np.allclose(frame_cast(np.ones((8, 8, 3), np.float32)), 1.0)
 
 
 def test_labels_over_a_backdrop_do_not_depend_on_the_frame(backdrop_folder):

@@ -2,8 +2,9 @@
 
 The ray-caster draws the objects (poles, look-alikes) over a real frame instead of the modelled room. Labels stay
 exact because the masks come from the ray-caster; the frame only changes how the objects look: their light and
-white balance follow the frame's, a back-lit frame darkens them and lowers their contrast, and their edges get the
-frame's softness. Pixels more than ``FEATHER_REACH_PX`` from every object keep the frame's values (before the camera
+white balance follow the frame's (the colour its brightest surfaces show, not its mean colour: a green carpet is
+content, not light), a back-lit frame darkens them and lowers their contrast, and their edges get the frame's
+softness. Pixels more than ``FEATHER_REACH_PX`` from every object keep the frame's values (before the camera
 effects that apply to the whole image).
 """
 from __future__ import annotations
@@ -23,6 +24,9 @@ MIN_WIDTH, MIN_HEIGHT = 160, 120
 RENDER_MIN_WIDTH = 640
 #: How far (px) the soft object edges reach into the frame.
 FEATHER_REACH_PX = 3
+#: The frame's cast is read from its brightest pixels: this top percentile of brightness, clipped pixels excluded.
+WHITE_PATCH_PERCENTILE = 99.0
+CLIPPED = 0.98
 
 
 class BackdropError(ValueError):
@@ -81,12 +85,27 @@ def load_backdrop(path: Path) -> np.ndarray:
     return rgb
 
 
+def frame_cast(backdrop: np.ndarray) -> np.ndarray:
+    """The frame's colour cast as RGB gains of mean 1: the mean colour of its brightest unclipped pixels (white patch).
+
+    White field lines, walls and windows show the light and the camera's white balance; the frame's mean colour
+    (grey world) would instead take a green carpet's colour for a green light and push blue paint towards green.
+    """
+    pixels = backdrop.reshape(-1, 3)
+    pixels = pixels[pixels.max(axis=1) < CLIPPED]
+    if len(pixels) == 0:
+        return np.ones(3)
+    brightness = pixels.mean(axis=1)
+    brightest = pixels[brightness >= np.percentile(brightness, WHITE_PATCH_PERCENTILE)].mean(axis=0)
+    return brightest / max(float(brightest.mean()), 1e-3)
+
+
 def sample_look(rng: np.random.Generator, backdrop: np.ndarray, p_backlight: float = 0.2) -> Look:
-    """The objects' look for this frame: light from its brightness, cast from its grey-world balance, maybe back light."""
+    """The objects' look for this frame: light from its brightness, cast from its white patch, maybe back light."""
     means = backdrop.reshape(-1, 3).mean(axis=0)
     luminance = float(means @ np.array([0.299, 0.587, 0.114]))
     light_scale = float(np.clip(luminance / 0.45, 0.45, 1.35) * rng.uniform(0.85, 1.15))
-    gain = np.clip(means / max(float(means.mean()), 1e-3), 0.75, 1.3) ** rng.uniform(0.3, 0.8)
+    gain = np.clip(frame_cast(backdrop), 0.75, 1.3) ** rng.uniform(0.3, 0.8)
     backlit = rng.random() < p_backlight
     return Look(light_scale=light_scale, channel_gain=tuple(float(g) for g in gain),
                 backlight_gain=float(rng.uniform(0.25, 0.6)) if backlit else 1.0,
