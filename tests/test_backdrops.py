@@ -57,7 +57,7 @@ def test_composite_changes_only_the_objects_and_their_soft_edges():
     coverage[30:90, 70:80] = True
     objects = np.zeros_like(backdrop)
     objects[coverage] = (0.9, 0.2, 0.6)
-    look = sample_look(rng, backdrop)
+    look = sample_look(rng, backdrop, frame_cast(backdrop))
     result = composite(backdrop, objects, coverage, look)
     far = _far_from(coverage, FEATHER_REACH_PX)
     assert np.array_equal(result[far], backdrop[far])
@@ -98,7 +98,7 @@ def test_labels_over_a_backdrop_do_not_depend_on_the_frame(backdrop_folder):
     checked = 0
     for index in range(8):
         scene = sample_scene(np.random.default_rng([5, index]), camera, goal_posts_in_view=False)
-        look = sample_look(np.random.default_rng(index), backdrop)
+        look = sample_look(np.random.default_rng(index), backdrop, frame_cast(backdrop))
         over, over_other = render_scene(scene, backdrop=backdrop, look=look), render_scene(scene, backdrop=other, look=look)
         assert [(p.cls, p.range_m) for p in over.poles] == [(p.cls, p.range_m) for p in over_other.poles]
         assert all(np.array_equal(a.mask, b.mask) for a, b in zip(over.poles, over_other.poles))

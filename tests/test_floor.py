@@ -6,7 +6,7 @@ import math
 import cv2
 import numpy as np
 
-from detector.synth.backdrops import FEATHER_REACH_PX, sample_look
+from detector.synth.backdrops import FEATHER_REACH_PX, frame_cast, sample_look
 from detector.synth.floor import FRONT_MARGIN_PX, pitch_range_deg, read_floor
 from detector.synth.render import render_scene
 from detector.synth.scene import SceneConfig, foot_pixel, sample_scene
@@ -69,7 +69,7 @@ def test_composited_labels_are_exactly_the_visible_pixels_and_hidden_parts_show_
     hidden_and_shown = 0
     for index in range(30):
         scene = sample_scene(np.random.default_rng([8, index]), camera, goal_posts_in_view=False, floor=floor)
-        look = sample_look(np.random.default_rng(index), frame)
+        look = sample_look(np.random.default_rng(index), frame, frame_cast(frame))
         free = render_scene(scene, backdrop=frame, look=look)
         cut = render_scene(scene, backdrop=frame, look=look, floor=floor)
         objects = render_scene(scene, backdrop=np.zeros_like(frame), look=look, floor=floor).image.any(axis=2)

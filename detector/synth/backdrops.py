@@ -100,12 +100,21 @@ def frame_cast(backdrop: np.ndarray) -> np.ndarray:
     return brightest / max(float(brightest.mean()), 1e-3)
 
 
-def sample_look(rng: np.random.Generator, backdrop: np.ndarray, p_backlight: float = 0.2) -> Look:
-    """The objects' look for this frame: light from its brightness, cast from its white patch, maybe back light."""
+@lru_cache(maxsize=256)
+def backdrop_cast(path: Path) -> np.ndarray:
+    """``frame_cast`` of the backdrop at ``path``, computed once per file (about 60 ms at 1280x960)."""
+    cast = frame_cast(load_backdrop(path))
+    cast.setflags(write=False)
+    return cast
+
+
+def sample_look(rng: np.random.Generator, backdrop: np.ndarray, cast: np.ndarray, p_backlight: float = 0.2) -> Look:
+    """The objects' look for this frame: light from its brightness, ``cast`` (``frame_cast``) for its white balance,
+    maybe back light."""
     means = backdrop.reshape(-1, 3).mean(axis=0)
     luminance = float(means @ np.array([0.299, 0.587, 0.114]))
     light_scale = float(np.clip(luminance / 0.45, 0.45, 1.35) * rng.uniform(0.85, 1.15))
-    gain = np.clip(frame_cast(backdrop), 0.75, 1.3) ** rng.uniform(0.3, 0.8)
+    gain = np.clip(cast, 0.75, 1.3) ** rng.uniform(0.3, 0.8)
     backlit = rng.random() < p_backlight
     return Look(light_scale=light_scale, channel_gain=tuple(float(g) for g in gain),
                 backlight_gain=float(rng.uniform(0.25, 0.6)) if backlit else 1.0,

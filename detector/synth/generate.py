@@ -13,7 +13,7 @@ from detector.datasets.model import Instance
 from detector.datasets.polygons import mask_to_polygon
 from detector.parallel import default_workers, ordered_map
 from detector.preview import contact_sheet, draw_instances
-from detector.synth.backdrops import load_backdrop, sample_look
+from detector.synth.backdrops import backdrop_cast, load_backdrop, sample_look
 from detector.synth.effects import apply_camera_effects, camera_effects
 from detector.synth.floor import floor_of
 from detector.synth.readable import misread_bands
@@ -136,8 +136,8 @@ def _draw_scene(job: SynthJob, index: int, rng: np.random.Generator,
         camera = PinholeCamera(backdrop.shape[1], backdrop.shape[0], job.hfov_deg)
         floor = floor_of(backdrop_path)
         scene = sample_scene(rng, camera, job.config, goal_posts_in_view=False, floor=floor)
-        return scene, render_scene(scene, job.config.pole, backdrop=backdrop, look=sample_look(rng, backdrop),
-                                   floor=floor), camera
+        look = sample_look(rng, backdrop, backdrop_cast(backdrop_path))
+        return scene, render_scene(scene, job.config.pole, backdrop=backdrop, look=look, floor=floor), camera
     if job.calibration_shots:
         # Ranges vary fastest, so any number of shots covers every distance.
         range_m = CALIBRATION_RANGES_M[index % len(CALIBRATION_RANGES_M)]
