@@ -41,7 +41,7 @@ def test_labels_are_the_rendered_visible_masks():
         scene = sample_scene(np.random.default_rng([11, index]), camera)
         frame = render_scene(scene)
         sample = render_one(SynthJob(12, 11, 320, 240), index)
-        if sample.redraws:  # a pole read as another colour: the frame is another scene (tests/test_readable.py)
+        if sample.repaints:  # a pole read as another colour and was repainted (tests/test_readable.py)
             continue
         # What the generator labels: enough pixels for an outline (a few scattered slivers of a hidden pole have none),
         # and enough of both bands to name the pole.

@@ -17,8 +17,9 @@ from detector.synth.backdrops import backdrop_cast, load_backdrop, sample_look
 from detector.synth.effects import apply_camera_effects, camera_effects
 from detector.synth.floor import floor_of
 from detector.synth.readable import misread_bands
-from detector.synth.render import MIN_BAND_PIXELS, MIN_BAND_SHARE, Frame, render_scene
-from detector.synth.scene import Scene, SceneConfig, calibration_scene, sample_scene
+from detector.synth.objects import repainted
+from detector.synth.render import MIN_BAND_PIXELS, MIN_BAND_SHARE, Frame, PoleTruth, render_scene
+from detector.synth.scene import BackdropShot, Scene, SceneConfig, calibration_scene, sample_scene
 from naoslam.camera import PinholeCamera
 from naoslam.landmarks import CLASSES
 
@@ -29,8 +30,8 @@ CALIBRATION_ANGLES_DEG = (0.0, -10.0, 10.0, -20.0, 20.0)
 #: A landmark with fewer visible pixels than this is too small to annotate (and to learn from).
 MIN_LABEL_PIXELS = 15
 PREVIEW_IMAGES = 12
-#: Scenes drawn at most for one frame while a labelled pole's band reads as another colour.
-MAX_DRAWS = 6
+#: Renders at most of one frame's scene while a labelled pole's band reads as another colour (each repaints those poles).
+MAX_RENDERS = 6
 
 
 @dataclass(frozen=True)
@@ -72,8 +73,8 @@ class RenderedSample:
     width: int
     height: int
     backdrop: str | None
-    #: How many scenes were drawn and rejected before this one (a labelled pole read as another colour).
-    redraws: int
+    #: How many times misread poles were repainted and the scene rendered again (``draw_frame``).
+    repaints: int
 
 
 def split_names(n: int, seed: int) -> list[str]:
@@ -88,26 +89,11 @@ _EFFECTS = None
 
 
 def render_one(job: SynthJob, index: int) -> RenderedSample:
-    """Render image ``index`` of the job; depends only on (job, index), never on the worker.
-
-    A frame in which a labelled pole's band reads as another colour (``readable.misread_bands``) is drawn again as a
-    new scene, up to ``MAX_DRAWS`` times; if the last draw still has such poles, they stay unlabelled.
-    """
-    global _EFFECTS
-    if _EFFECTS is None:
-        _EFFECTS = camera_effects()
-    backdrop_path = _pick_backdrop(job, index)
-    for draw in range(MAX_DRAWS):
-        rng = np.random.default_rng([job.seed, index] if draw == 0 else [job.seed, index, draw])
-        scene, frame, camera = _draw_scene(job, index, rng, backdrop_path)
-        image = apply_camera_effects(_EFFECTS, (frame.image * 255.0 + 0.5).astype(np.uint8), scene.effects_seed)
-        labelled = [pole for pole in frame.poles if pole.mask.sum() >= MIN_LABEL_PIXELS and pole.nameable]
-        misread = {id(pole) for pole in labelled if misread_bands(image, pole.cls, pole.band_masks)}
-        if not misread:
-            break
-    labelled = [pole for pole in labelled if id(pole) not in misread]
+    """Render image ``index`` of the job; depends only on (job, index), never on the worker."""
+    scene, image, labelled, renders = draw_frame(job, index)
     ok, encoded = cv2.imencode(".jpg", cv2.cvtColor(image, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, scene.jpeg_quality])
     instances, truth = [], []
+    camera = scene.camera
     size = np.array([camera.width, camera.height], np.float64)
     for pole in labelled:
         polygon = mask_to_polygon(pole.mask)
@@ -123,29 +109,60 @@ def render_one(job: SynthJob, index: int) -> RenderedSample:
     pose = scene.pose
     camera_info = {"x": round(pose.x, 4), "y": round(pose.y, 4), "height_m": round(pose.z, 4), "yaw_rad": round(pose.yaw, 5),
                    "pitch_rad": round(pose.pitch, 5), "roll_rad": round(pose.roll, 5)}
+    backdrop = scene.backdrop
     return RenderedSample(index, encoded.tobytes(), instances, truth, camera_info, camera.width, camera.height,
-                          backdrop_path.name if backdrop_path is not None else None, draw)
+                          backdrop.path.name if backdrop is not None else None, renders - 1)
 
 
-def _draw_scene(job: SynthJob, index: int, rng: np.random.Generator,
-                backdrop_path: Path | None) -> tuple[Scene, Frame, PinholeCamera]:
-    """One scene for frame ``index`` drawn from ``rng``, rendered (before the camera effects), and its camera."""
+def draw_frame(job: SynthJob, index: int) -> tuple[Scene, np.ndarray, list[PoleTruth], int]:
+    """Frame ``index``: its scene, the finished uint8 RGB image, the poles to label, and how many renders it took.
+
+    A pole whose band reads as another colour in the finished pixels (``readable.misread_bands``) gets fresh paint
+    and the same scene is rendered again, up to ``MAX_RENDERS`` renders; a pole still misread after that stays
+    unlabelled. Only the misread poles change, so the frames written keep the sampler's camera poses, pole counts,
+    backdrops and looks (back light included) instead of favouring the scenes that happen to read well.
+    """
+    global _EFFECTS
+    if _EFFECTS is None:
+        _EFFECTS = camera_effects()
+    scene = _draw_scene(job, index, np.random.default_rng([job.seed, index]), _pick_backdrop(job, index))
+    for renders in range(1, MAX_RENDERS + 1):
+        frame = _render(job, scene)
+        image = apply_camera_effects(_EFFECTS, (frame.image * 255.0 + 0.5).astype(np.uint8), scene.effects_seed)
+        labelled = [pole for pole in frame.poles if pole.mask.sum() >= MIN_LABEL_PIXELS and pole.nameable]
+        misread = {pole.cylinder for pole in labelled if misread_bands(image, pole.cls, pole.band_masks)}
+        if not misread or renders == MAX_RENDERS:
+            break
+        rng = np.random.default_rng([job.seed, index, renders])
+        for cylinder in sorted(misread):
+            scene.cylinders[cylinder] = repainted(scene.cylinders[cylinder], job.config.paint.draw(rng))
+    return scene, image, [pole for pole in labelled if pole.cylinder not in misread], renders
+
+
+def _draw_scene(job: SynthJob, index: int, rng: np.random.Generator, backdrop_path: Path | None) -> Scene:
+    """One scene for frame ``index`` drawn from ``rng``: over the backdrop (in a look drawn for it) when one is given."""
     camera = job.camera
     if backdrop_path is not None:
         backdrop = load_backdrop(backdrop_path)
         camera = PinholeCamera(backdrop.shape[1], backdrop.shape[0], job.hfov_deg)
         floor = floor_of(backdrop_path)
         scene = sample_scene(rng, camera, job.config, goal_posts_in_view=False, floor=floor)
-        look = sample_look(rng, backdrop, backdrop_cast(backdrop_path))
-        return scene, render_scene(scene, job.config.pole, backdrop=backdrop, look=look, floor=floor), camera
+        scene.backdrop = BackdropShot(backdrop_path, sample_look(rng, backdrop, backdrop_cast(backdrop_path)), floor)
+        return scene
     if job.calibration_shots:
         # Ranges vary fastest, so any number of shots covers every distance.
         range_m = CALIBRATION_RANGES_M[index % len(CALIBRATION_RANGES_M)]
         angle = CALIBRATION_ANGLES_DEG[(index // len(CALIBRATION_RANGES_M)) % len(CALIBRATION_ANGLES_DEG)]
-        scene = calibration_scene(rng, camera, CLASSES[index % len(CLASSES)], range_m, angle, job.config)
-    else:
-        scene = sample_scene(rng, camera, job.config)
-    return scene, render_scene(scene, job.config.pole), camera
+        return calibration_scene(rng, camera, CLASSES[index % len(CLASSES)], range_m, angle, job.config)
+    return sample_scene(rng, camera, job.config)
+
+
+def _render(job: SynthJob, scene: Scene) -> Frame:
+    """The scene ray-cast (before the camera effects), over its backdrop if it has one."""
+    if scene.backdrop is None:
+        return render_scene(scene, job.config.pole)
+    return render_scene(scene, job.config.pole, backdrop=load_backdrop(scene.backdrop.path), look=scene.backdrop.look,
+                        floor=scene.backdrop.floor)
 
 
 def _pick_backdrop(job: SynthJob, index: int) -> Path | None:
@@ -179,7 +196,7 @@ def generate_dataset(out: str | Path, job: SynthJob, *, workers: int | None = No
             writer.add(splits[sample.index], name, sample.jpeg, sample.instances)
             annotations["images"][name] = {"split": splits[sample.index], "width": sample.width,
                                            "height": sample.height, "camera": sample.camera, "backdrop": sample.backdrop,
-                                           "redraws": sample.redraws,
+                                           "repaints": sample.repaints,
                                            "landmarks": sample.truth}
             if preview and len(tiles) < PREVIEW_IMAGES:
                 image = cv2.imdecode(np.frombuffer(sample.jpeg, np.uint8), cv2.IMREAD_COLOR)
@@ -212,6 +229,7 @@ ANNOTATION_FIELDS = {
     "pixels": "visible mask area in pixels",
     "camera": "camera position on the field, height, yaw, pitch (down positive), roll",
     "backdrop": "file name of the real frame the objects were drawn over (null: the modelled room)",
-    "redraws": "scenes drawn and rejected for this frame because a labelled pole's band read as another colour in the "
-               f"pixels (at most {MAX_DRAWS - 1}; poles still misread after that are left unlabelled)",
+    "repaints": "times this frame's scene was rendered again because a labelled pole's band read as another colour in "
+                f"the pixels, with fresh paint on those poles only (at most {MAX_RENDERS - 1}; poles still misread "
+                "after that are left unlabelled)",
 }

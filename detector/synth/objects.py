@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -82,3 +82,10 @@ def pole(code: str, x: float, y: float, geometry, rotation: np.ndarray | None = 
              (base_h + band, base_h + 2 * band, paint[code[0]]))
     return Cylinder(np.array([x, y, 0.0]), np.eye(3) if rotation is None else rotation,
                     geometry.radius, geometry.height, bands, label=code)
+
+
+def repainted(landmark: Cylinder, paint: dict[str, RGB]) -> Cylinder:
+    """The landmark (a ``pole``) with its two coloured bands in ``paint``; shape, place and white base kept."""
+    base, lower, upper = landmark.bands
+    code = landmark.label
+    return replace(landmark, bands=(base, (*lower[:2], paint[code[1]]), (*upper[:2], paint[code[0]])))

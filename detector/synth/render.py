@@ -38,6 +38,8 @@ class PoleTruth:
     band_pixels_whole: tuple[int, ...]
     #: The visible pixels of the upper and the lower coloured band, as masks over the frame.
     band_masks: tuple[np.ndarray, ...]
+    #: Index of the pole's cylinder in ``Scene.cylinders``.
+    cylinder: int
 
     @property
     def band_pixels_shown(self) -> tuple[int, ...]:
@@ -102,7 +104,7 @@ def render_scene(scene: Scene, geometry: PoleGeometry = PoleGeometry(), backdrop
         poles.append(PoleTruth(cylinder.label, visible, range_m, bearing, float(visible.sum()) / max(full_area, 1),
                                in_image_area < full_area, divide, float(math.dist(upper, lower)),
                                (float(cylinder.base[0]), float(cylinder.base[1])),
-                               band_pixels_whole, band_masks))
+                               band_pixels_whole, band_masks, index - len(scene.quads)))
     if backdrop is not None:
         colour = composite(backdrop, colour, owner >= 0, look)
     return Frame(np.clip(colour, 0.0, 1.0), poles)

@@ -3,9 +3,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
+from detector.synth.backdrops import Look
 from detector.synth.background import Room, WallFeature
 from detector.synth.floor import FloorMap, pitch_range_deg
 from detector.synth.objects import (BAND_RGB, PINK, WHITE, YELLOW, Cylinder, Quad, horizontal_rotation, pole,
@@ -43,9 +45,18 @@ class SceneConfig:
             raise ValueError(f"--nominal-paint-share {self.nominal_paint_share} must lie between 0 and 1")
 
 
+@dataclass(frozen=True)
+class BackdropShot:
+    """A real frame a scene is drawn over, the look its objects take in that frame, and the frame's floor."""
+
+    path: Path
+    look: Look
+    floor: FloorMap | None
+
+
 @dataclass
 class Scene:
-    """Everything needed to render one frame deterministically."""
+    """Everything needed to render one frame deterministically (over ``backdrop`` when it has one)."""
 
     camera: PinholeCamera
     pose: CameraPose
@@ -56,6 +67,7 @@ class Scene:
     effects_seed: int = 0
     jpeg_quality: int = 90
     effects: bool = True
+    backdrop: BackdropShot | None = None
 
 
 def sample_scene(rng: np.random.Generator, camera: PinholeCamera, config: SceneConfig = SceneConfig(),
