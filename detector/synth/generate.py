@@ -147,7 +147,7 @@ def _draw_scene(job: SynthJob, index: int, rng: np.random.Generator, backdrop_pa
         camera = PinholeCamera(backdrop.shape[1], backdrop.shape[0], job.hfov_deg)
         floor = floor_of(backdrop_path)
         scene = sample_scene(rng, camera, job.config, goal_posts_in_view=False, floor=floor)
-        scene.backdrop = BackdropShot(backdrop_path, sample_look(rng, backdrop, backdrop_cast(backdrop_path)), floor)
+        scene.backdrop = BackdropShot(backdrop_path, sample_look(rng, backdrop, backdrop_cast(backdrop_path)))
         return scene
     if job.calibration_shots:
         # Ranges vary fastest, so any number of shots covers every distance.
@@ -161,8 +161,9 @@ def _render(job: SynthJob, scene: Scene) -> Frame:
     """The scene ray-cast (before the camera effects), over its backdrop if it has one."""
     if scene.backdrop is None:
         return render_scene(scene, job.config.pole)
-    return render_scene(scene, job.config.pole, backdrop=load_backdrop(scene.backdrop.path), look=scene.backdrop.look,
-                        floor=scene.backdrop.floor)
+    path = scene.backdrop.path
+    return render_scene(scene, job.config.pole, backdrop=load_backdrop(path), look=scene.backdrop.look,
+                        floor=floor_of(path))
 
 
 def _pick_backdrop(job: SynthJob, index: int) -> Path | None:

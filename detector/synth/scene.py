@@ -47,11 +47,10 @@ class SceneConfig:
 
 @dataclass(frozen=True)
 class BackdropShot:
-    """A real frame a scene is drawn over, the look its objects take in that frame, and the frame's floor."""
+    """A real frame a scene is drawn over and the look its objects take in that frame."""
 
     path: Path
     look: Look
-    floor: FloorMap | None
 
 
 @dataclass
