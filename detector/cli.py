@@ -417,7 +417,7 @@ def _evaluate(args: argparse.Namespace) -> int:
         conf = args.conf if args.conf is not None else predictor.operating_conf or FALLBACK_CONF
         rows.append(evaluate(predictor, args.data, out, args.split, conf))
     print_metrics(rows)
-    print(f"wrote {args.out} (metrics.json, per_image.png, sweep.png, confusion.png, errors/)")
+    print(f"wrote {args.out} (metrics.json, per_image.png, sweep.png, confusion.png, recall_by_width.png, errors/)")
     return 0
 
 

@@ -14,6 +14,7 @@ from calibration.samples import collect_samples
 from detector.cli import main
 from detector.datasets import load_dataset
 from detector.datasets.truth import load_truth
+from detector.evaluation.by_width import label_width_px, recall_by_width, width_bin_names
 from detector.evaluation.counting import confusion_matrix, evaluate_image, outcome, precision_recall, totals
 from detector.evaluation.predictors import ColourFilterPredictor, OnnxPredictor, Prediction
 from detector.evaluation.run import evaluate
@@ -143,6 +144,28 @@ def test_shifted_masks_give_the_hand_computed_iou():
     assert low.counts(0.5) == {"tp": 0, "fp": 0, "fn": 1, "tn": 0}
 
 
+def test_recall_by_width_puts_each_label_in_the_bin_of_its_width():
+    widths = [6, 12, 40, 100]
+    shape = (200, 640)
+    masks = [_rectangle(10 + 150 * i, width=w, height=120, shape=shape) for i, w in enumerate(widths)]
+    found = [masks[1], masks[3]]
+    image = evaluate_image("a.jpg", ["bp"] * 4, masks, [None] * 4, _prediction(["bp", "bp"], found))
+    rows = recall_by_width([image], 0.5)
+    assert [row["width"] for row in rows] == width_bin_names() == ["< 10 px", "10-16 px", "16-32 px", "32-64 px",
+                                                                   ">= 64 px"]
+    assert [(row["labels"], row["found"]) for row in rows] == [(1, 0), (1, 1), (0, 0), (1, 0), (1, 1)]
+    assert [row["recall"] for row in rows] == [0.0, 1.0, None, 0.0, 1.0]
+    assert sum(row["found"] for row in rows) == totals([image], 0.5)["tp"]
+
+
+def test_label_width_is_measured_across_a_tilted_pole_and_scaled_to_a_640_px_frame():
+    upright = _rectangle(100, width=24, height=200, shape=(400, 1280))
+    assert label_width_px(upright) == pytest.approx(12, abs=0.6)
+    tilted = np.zeros((480, 640), np.uint8)
+    cv2.fillPoly(tilted, [cv2.boxPoints(((320, 240), (10, 120), 20)).astype(np.int32)], 1)
+    assert 9 < label_width_px(tilted.astype(bool)) < 13  # rasterised 10 px; the upright box would be 50 px wide
+
+
 def test_empty_images_without_detections_are_true_negatives():
     images = [evaluate_image(f"{i}.jpg", [], [], [], _prediction([], [])) for i in range(5)]
     assert totals(images, 0.5) == {"tp": 0, "fp": 0, "fn": 0, "tn": 5}
@@ -202,6 +225,10 @@ def test_evaluate_writes_metrics_plots_and_overlays(synth_dataset, tmp_path):
     assert saved["tp"] + saved["fn"] == sum(len(s.instances) for s in load_dataset(synth_dataset).split("test"))
     assert cv2.imread(str(tmp_path / "eval" / "per_image.png")) is not None
     assert cv2.imread(str(tmp_path / "eval" / "confusion.png")) is not None
+    assert cv2.imread(str(tmp_path / "eval" / "recall_by_width.png")) is not None
+    by_width = saved["recall_by_width"]
+    assert sum(row["labels"] for row in by_width) == saved["tp"] + saved["fn"]
+    assert sum(row["found"] for row in by_width) == saved["tp"]
     confusion = np.array(saved["confusion"]["counts"])
     assert np.trace(confusion) == saved["tp"] and confusion[:-1].sum() == saved["tp"] + saved["fn"]
     assert len(list((tmp_path / "eval" / "errors").glob("*.jpg"))) == metrics["overlays"]

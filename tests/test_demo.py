@@ -57,6 +57,7 @@ def test_demo_runs_every_stage_writes_the_report_and_resumes(tmp_path, monkeypat
     assert len(re.findall(r'src="data:image/(?:png|jpeg);base64,', page)) >= 10
     assert "not produced" not in page.split("Evaluation on held-out frames")[0]
     assert page.count('alt="confusion matrix"') == 3  # one per front end
+    assert page.count('alt="recall by pole width"') == 3
     evaluation = json.loads((out / "evaluation" / "summary.json").read_text())
     assert [row["model"] for row in evaluation] == ["yolov8n-seg.onnx", "yolov8n-seg-int8.onnx", "colour-filter"]
     # A second run finds every stage up to date and redoes nothing.

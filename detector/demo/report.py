@@ -157,7 +157,7 @@ def _evaluation(evaluation: dict) -> str:
         examples = sorted((folder / "errors").glob("*.jpg"))[:2]
         out += (f"<h3>{html.escape(r['model'])}</h3><div class='row'>" + _img(folder / "per_image.png", "per image")
                 + _img(folder / "sweep.png", "confidence sweep") + _img(folder / "confusion.png", "confusion matrix")
-                + "</div>")
+                + _img(folder / "recall_by_width.png", "recall by pole width") + "</div>")
         if examples:
             out += ("<p class='note'>False positives (red) and misses (yellow), matched detections in blue:</p>"
                     "<div class='row'>" + "".join(_img(e, e.name, 640) for e in examples) + "</div>")

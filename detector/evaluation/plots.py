@@ -1,4 +1,5 @@
-"""Pictures of an evaluation: counts per image (thesis figure 4.10), the confidence sweep, FP/FN overlays."""
+"""Pictures of an evaluation: counts per image (thesis figure 4.10), the confidence sweep, recall by pole width,
+FP/FN overlays."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -44,6 +45,23 @@ def plot_sweep(sweep: list[dict], png: Path, title: str) -> Path:
     ax.set_title(f"{title}: confidence sweep")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
+    return save_figure(fig, png)
+
+
+def plot_recall_by_width(rows: list[dict], png: Path, title: str) -> Path:
+    """Recall in each pole-width bin as bars, each labelled with found / labels."""
+    fig, ax = plt.subplots(figsize=(5, 3.2), constrained_layout=True)
+    x = np.arange(len(rows))
+    recall = [row["recall"] or 0.0 for row in rows]
+    ax.bar(x, recall, color=COUNT_COLOURS["tp"], width=0.7)
+    for i, row in enumerate(rows):
+        ax.text(i, recall[i] + 0.02, f"{row['found']}/{row['labels']}", ha="center", fontsize=8)
+    ax.set_xticks(x, [row["width"] for row in rows], fontsize=8)
+    ax.set_xlabel("pole width (rotated box, px in a 640 px wide frame)")
+    ax.set_ylabel("recall")
+    ax.set_ylim(0, 1.12)
+    ax.set_title(f"{title}: recall by pole width")
+    ax.grid(alpha=0.3, axis="y")
     return save_figure(fig, png)
 
 

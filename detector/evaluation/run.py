@@ -11,9 +11,10 @@ from tqdm import tqdm
 from detector.datasets.intake import open_dataset
 from detector.datasets.polygons import polygon_to_mask
 from detector.datasets.truth import load_truth
+from detector.evaluation.by_width import recall_by_width, width_bin_names
 from detector.evaluation.counting import (ImageEvaluation, confidence_sweep, confusion_matrix, evaluate_image,
                                           map_scores, outcome, precision_recall, totals)
-from detector.evaluation.plots import plot_confusion, plot_per_image, plot_sweep, write_overlays
+from detector.evaluation.plots import plot_confusion, plot_per_image, plot_recall_by_width, plot_sweep, write_overlays
 from detector.evaluation.predictors import Predictor
 from naoslam.atomic import write_json
 from naoslam.camera import NAO_HFOV_DEG
@@ -52,6 +53,7 @@ def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", c
                             "counts": confusion.tolist()}
     metrics["class_swaps"] = sum(len(o.swaps) for o in outcomes)
     metrics["duplicates"] = sum(len(o.duplicates) for o in outcomes)
+    metrics["recall_by_width"] = recall_by_width(images, conf)
     metrics.update(map_scores(images, CLASSES) or {})
     metrics.update(_measurement_errors(images, conf, predictor))
     out = Path(out)
@@ -59,6 +61,7 @@ def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", c
     plot_per_image(metrics["per_image"], out / "per_image.png", predictor.name)
     plot_sweep(sweep, out / "sweep.png", predictor.name)
     plot_confusion(confusion, CLASSES, out / "confusion.png", predictor.name)
+    plot_recall_by_width(metrics["recall_by_width"], out / "recall_by_width.png", predictor.name)
     metrics["overlays"] = write_overlays(images, frames, conf, out / "errors")
     write_json(out / "metrics.json", metrics)
     return metrics
@@ -117,12 +120,22 @@ def _range(pred, p: int, calibration, image_width: int) -> float | None:
     return calibration.range_from_box(*pred.sizes[p], image_width)[0]
 
 
+def _width_recall(m: dict, index: int) -> str:
+    """Recall in one width bin, with its label count ("80 % of 10"); "-" for an empty bin or an older metrics.json."""
+    rows = m.get("recall_by_width")
+    if not rows or not rows[index]["labels"]:
+        return "-"
+    return f"{100 * rows[index]['recall']:.0f} % of {rows[index]['labels']}"
+
+
 def _localisation(m: dict) -> str:
     if m.get("mean_iou") is not None:
         return f"IoU {m['mean_iou']:.4f}"
     return f"{m['divide_pixel_error']['mean']:.2f} px" if "divide_pixel_error" in m else "-"
 
 
+#: Recall in each pole-width bin, one row per bin.
+_WIDTH_ROWS = {f"  poles {name} wide": (lambda m, i=i: _width_recall(m, i)) for i, name in enumerate(width_bin_names())}
 #: Rows of the comparison table: label and how to show it from metrics.json.
 TABLE_ROWS = {
     "images": lambda m: str(m["images"]),
@@ -130,6 +143,7 @@ TABLE_ROWS = {
     "FP: class swaps / duplicates": lambda m: f"{m['class_swaps']} / {m['duplicates']}",
     "precision": lambda m: f"{100 * m['precision']:.1f} %",
     "recall": lambda m: f"{100 * m['recall']:.1f} %",
+    **_WIDTH_ROWS,
     "localisation": _localisation,
     "mAP50 / mAP50-95": lambda m: f"{m['map50']:.3f} / {m['map50_95']:.3f}" if "map50" in m else "-",
     "range error median / p90": lambda m: (f"{m['range_error']['median']:.3f} / {m['range_error']['p90']:.3f} m"
