@@ -1,6 +1,8 @@
 """Recall by a pole's width in pixels: how small a pole a front end still finds (far poles are a few px wide)."""
 from __future__ import annotations
 
+import numpy as np
+
 from detector.evaluation.counting import ImageEvaluation
 from naoslam.detector import rotated_box_of_mask
 
@@ -10,7 +12,7 @@ REFERENCE_FRAME_WIDTH_PX = 640
 WIDTH_EDGES_PX = (10, 16, 32, 64)
 
 
-def label_width_px(mask) -> float:
+def label_width_px(mask: np.ndarray) -> float:
     """The label's width: the short side of the rotated box around its mask, scaled to a 640 px wide frame."""
     box = rotated_box_of_mask(mask)
     return 0.0 if box is None else box.width * REFERENCE_FRAME_WIDTH_PX / mask.shape[1]
@@ -29,8 +31,8 @@ def recall_by_width(images: list[ImageEvaluation], conf: float) -> list[dict]:
     for image in images:
         matched = {r for _, r in image.match(conf)}
         for r, mask in enumerate(image.truth_masks):
-            b = sum(label_width_px(mask) >= edge for edge in WIDTH_EDGES_PX)
-            labels[b] += 1
-            found[b] += r in matched
+            bin_index = sum(label_width_px(mask) >= edge for edge in WIDTH_EDGES_PX)
+            labels[bin_index] += 1
+            found[bin_index] += r in matched
     return [{"width": name, "labels": n, "found": k, "recall": k / n if n else None}
             for name, n, k in zip(names, labels, found)]
