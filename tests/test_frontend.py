@@ -141,3 +141,18 @@ def test_front_end_imports_no_training_libraries(tiny_onnx):
             "print(bad); sys.exit(1 if bad else 0)")
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert result.returncode == 0, result.stdout + result.stderr
+
+
+def test_package_names_the_runtime_api_and_loads_it_on_first_use():
+    code = ("import sys, naoslam; loaded_early = 'onnxruntime' in sys.modules; "
+            "from naoslam.detector import LandmarkDetector; from naoslam.ekf_slam import EkfSlam; "
+            "assert naoslam.LandmarkDetector is LandmarkDetector and naoslam.EkfSlam is EkfSlam; "
+            "assert set(naoslam.__all__) <= set(dir(naoslam)); "
+            "assert all(getattr(naoslam, name) for name in naoslam.__all__); "
+            "print(loaded_early)")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "False"
+    import naoslam
+    with pytest.raises(AttributeError, match="no attribute 'LandmarkDetecter'"):
+        naoslam.LandmarkDetecter

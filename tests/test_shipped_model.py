@@ -38,8 +38,8 @@ def test_shipped_onnx_finds_a_rendered_pole_without_torch(code, tmp_path):
     cv2.imwrite(str(tmp_path / "frame.png"), image)
     np.save(tmp_path / "mask.npy", frame.poles[0].mask)
     code_run = (
-        "import json, sys, cv2, numpy as np; from naoslam.detector import LandmarkDetector; "
-        f"d = LandmarkDetector(); found = d(cv2.imread({str(tmp_path / 'frame.png')!r})); "
+        "import json, sys, cv2, numpy as np, naoslam; "
+        f"d = naoslam.LandmarkDetector(); found = d(cv2.imread({str(tmp_path / 'frame.png')!r})); "
         f"truth = np.load({str(tmp_path / 'mask.npy')!r}); "
         "ious = [float((f.full_mask(truth.shape) & truth).sum() / (f.full_mask(truth.shape) | truth).sum()) for f in found]; "
         "print(json.dumps({'names': [f.name for f in found], 'ious': ious, 'conf': d.conf, "
