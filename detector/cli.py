@@ -41,6 +41,20 @@ def _threads(text: str) -> int | str:
     return value
 
 
+def _add_dataset_argument(parser: argparse.ArgumentParser, help: str) -> None:
+    """The dataset as a first positional DATA or, as every other command takes it, as ``--data DATA``."""
+    parser.add_argument("data", type=Path, nargs="?", help=help)
+    parser.add_argument("--data", dest="data_option", type=Path, metavar="DATA", help="the same as DATA")
+
+
+def _one_dataset(args: argparse.Namespace) -> Path:
+    """The dataset given as DATA or ``--data``, whichever was given (refused when neither or two differ)."""
+    given = {path for path in (args.data, args.data_option) if path is not None}
+    if len(given) != 1:
+        raise ValueError("give the dataset once, as DATA or as --data DATA")
+    return given.pop()
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="poles", description="Coloured-pole landmark detector pipeline for the Nao.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -65,14 +79,14 @@ def build_parser() -> argparse.ArgumentParser:
     synth.add_argument("--force", action="store_true", help="replace --out if it exists")
 
     check = sub.add_parser("check", help="validate a dataset and print a summary and every problem")
-    check.add_argument("data", type=Path, help="dataset folder (with data.yaml) or Roboflow COCO export folder")
+    _add_dataset_argument(check, "dataset folder (with data.yaml) or Roboflow COCO export folder")
     check.add_argument("--fix", action="store_true", help="write a cleaned copy to --out (never in place)")
     check.add_argument("--out", type=Path, help="where --fix writes the cleaned copy")
     check.add_argument("--notes", action="store_true", help="also list notes (e.g. images without a label file)")
     check.add_argument("--force", action="store_true", help="replace --out if it exists")
 
     convert = sub.add_parser("convert", help="write any readable dataset (e.g. a COCO export) in the Roboflow YOLOv8 layout")
-    convert.add_argument("data", type=Path)
+    _add_dataset_argument(convert, "dataset folder (with data.yaml) or Roboflow COCO export folder")
     convert.add_argument("--out", type=Path, required=True)
     convert.add_argument("--rename", action="append", metavar="OLD=NEW",
                          help="read the export's class OLD as landmark NEW (e.g. pink-blue=pb); repeat for each")
@@ -286,7 +300,13 @@ def _slam(args: argparse.Namespace) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    return run_command(args.command, lambda: COMMANDS[args.command](args), debug=args.debug)
+
+    def command() -> int:
+        if hasattr(args, "data_option"):
+            args.data = _one_dataset(args)
+        return COMMANDS[args.command](args)
+
+    return run_command(args.command, command, debug=args.debug)
 
 
 def _synth(args: argparse.Namespace) -> int:

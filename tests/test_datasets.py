@@ -145,6 +145,20 @@ def test_cli_refuses_fix_without_out(dataset_copy, capsys):
     assert "never written in place" in capsys.readouterr().err
 
 
+
+def test_check_and_convert_take_the_dataset_as_data_or_as_the_option_every_command_uses(dataset_copy, tmp_path,
+                                                                                        capsys):
+    assert main(["check", str(dataset_copy)]) == 0
+    positional = capsys.readouterr().out
+    assert main(["check", "--data", str(dataset_copy)]) == 0
+    assert capsys.readouterr().out == positional
+    assert main(["check"]) == 2
+    assert "give the dataset once" in capsys.readouterr().err
+    assert main(["check", str(dataset_copy), "--data", str(dataset_copy / "train")]) == 2
+    assert "give the dataset once" in capsys.readouterr().err
+    assert main(["convert", "--data", str(dataset_copy), "--out", str(tmp_path / "converted")]) == 0
+    assert (tmp_path / "converted" / "data.yaml").is_file()
+
 def test_require_clean_lists_problems(dataset_copy):
     label = _first_labelled(dataset_copy)
     _append_line(label, "0 0.1 0.1")
