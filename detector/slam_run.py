@@ -171,6 +171,9 @@ def _odometry_rows(odometry_csv: Path) -> tuple[list[list[float]], list[CameraPo
     camera pose of each row when the pose columns are there."""
     rows: list[list[float]] = []
     poses: list[CameraPose] = []
+    if not odometry_csv.is_file():
+        raise ValueError(f"{odometry_csv}: no such odometry file - pass the robot's odometry as a CSV with the "
+                         "header t,x,y,theta (README, 'The naoslam runtime')")
     with odometry_csv.open(newline="", encoding="utf-8-sig", errors="replace") as handle:
         reader = csv.DictReader(handle)
         if not reader.fieldnames or not {"t", "x", "y", "theta"} <= set(reader.fieldnames):

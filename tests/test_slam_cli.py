@@ -70,6 +70,14 @@ def test_a_recording_with_a_bad_odometry_line_is_named(tmp_path):
         recorded_sequence(frames, odometry, FrontEnd("colour-filter", calibration), 0.3)
 
 
+
+def test_a_recording_without_its_odometry_file_is_named(tmp_path):
+    frames, odometry = _recording(tmp_path)
+    odometry.unlink()
+    calibration = RangeCalibration(PowerLaw(50, -1), PowerLaw(220, -1), colour_law=PowerLaw(6.2, -1.0, 0.03))
+    with pytest.raises(ValueError, match=r"odometry.csv: no such odometry file - .* header t,x,y,theta"):
+        recorded_sequence(frames, odometry, FrontEnd("colour-filter", calibration), 0.3)
+
 def test_a_recording_hands_each_frame_the_camera_pose_of_the_nearest_odometry_row(tmp_path, monkeypatch):
     frames, odometry = _recording(tmp_path)
     odometry.write_text("t,x,y,theta,camera_height,camera_pitch,camera_roll\n0.0,0,0,0,0.50,0.10,0.00\n"
