@@ -53,6 +53,26 @@ def test_shipped_onnx_finds_a_rendered_pole_without_torch(code, tmp_path):
     assert 0.0 < found["conf"] < 1.0
 
 
+
+def _readme_robot_loop() -> str:
+    """The README's robot loop (the python block that builds ``naoslam.LandmarkDetector()``)."""
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    blocks = [block.split("```", 1)[0] for block in readme.split("```python\n")[1:]]
+    return next(block for block in blocks if "naoslam.LandmarkDetector()" in block)
+
+
+def test_readme_robot_loop_measures_a_rendered_pole(tmp_path):
+    camera = PinholeCamera(640, 480)
+    scene = calibration_scene(np.random.default_rng(5), camera, "pg", range_m=2.0, angle_deg=0.0)
+    image = cv2.cvtColor((render_scene(scene).image * 255 + 0.5).astype(np.uint8), cv2.COLOR_RGB2BGR)
+    cv2.imwrite(str(tmp_path / "frame.jpg"), image)
+    result = subprocess.run([sys.executable, "-c", _readme_robot_loop()], cwd=tmp_path, capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    (name, range_m, bearing_rad), = [line.split() for line in result.stdout.splitlines()]
+    assert name == "pg"
+    assert float(range_m) == pytest.approx(2.0, rel=0.15)
+    assert abs(float(bearing_rad)) < 0.05
+
 def test_shipped_onnx_carries_calibration_and_its_threshold():
     from naoslam.detector import LandmarkDetector
 
