@@ -41,9 +41,9 @@ def _threads(text: str) -> int | str:
     return value
 
 
-def _add_dataset_argument(parser: argparse.ArgumentParser, help: str) -> None:
+def _add_dataset_argument(parser: argparse.ArgumentParser, description: str) -> None:
     """The dataset as a first positional DATA or, as every other command takes it, as ``--data DATA``."""
-    parser.add_argument("data", type=Path, nargs="?", help=help)
+    parser.add_argument("data", type=Path, nargs="?", help=description)
     parser.add_argument("--data", dest="data_option", type=Path, metavar="DATA", help="the same as DATA")
 
 
