@@ -25,6 +25,7 @@ class LawFit:
     per_distance: PowerLaw | None
 
     def as_dict(self) -> dict:
+        """The fit as JSON-ready numbers: a, b, relative s.d., r^2, sample count (and the per-distance fit)."""
         out = {"a": self.law.a, "b": self.law.b, "relative_std": self.law.relative_std, "r2": self.r2,
                "samples": self.samples}
         if self.per_distance:

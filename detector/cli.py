@@ -56,6 +56,7 @@ def _one_dataset(args: argparse.Namespace) -> Path:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``poles`` parser: one subparser per pipeline stage, each flag with its default in its help."""
     parser = argparse.ArgumentParser(prog="poles", description="Coloured-pole landmark detector pipeline for the Nao.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
@@ -299,6 +300,7 @@ def _slam(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run one ``poles`` command; bad input ends in one line on stderr and exit code 2, never a traceback."""
     args = build_parser().parse_args(argv)
 
     def command() -> int:

@@ -261,6 +261,7 @@ def _summary(name: str, runs: list[dict]) -> dict:
 
 
 def print_comparison(rows: list[dict], title: str) -> None:
+    """Print one table row per back end: errors against the truth, missing and phantom landmarks, consistency."""
     from rich.console import Console
     from rich.table import Table
 

@@ -73,6 +73,7 @@ def training_dataset(weights: Path) -> Path:
 
 
 def read_frames(paths: list[Path]) -> list[np.ndarray]:
+    """The frames as BGR arrays; the first file that does not decode is named in the error."""
     frames = [cv2.imread(str(p)) for p in paths]
     bad = [str(p) for p, f in zip(paths, frames) if f is None]
     if bad:

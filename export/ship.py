@@ -40,6 +40,7 @@ def ship(weights: Path, onnx_fp32: Path, onnx_int8: Path, calibration_json: Path
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Copy a trained model into the package (checkpoint, FP32 and INT8 ONNX) and print each file's size."""
     parser = argparse.ArgumentParser(prog="python -m export.ship", description=__doc__)
     parser.add_argument("--weights", type=Path, required=True, help="best.pt of the training run")
     parser.add_argument("--onnx", type=Path, required=True, help="its FP32 export (the INT8 copy is read beside it)")

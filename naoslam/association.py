@@ -62,11 +62,13 @@ class Candidate:
         return np.linalg.solve(self.information, self.weighted_sum)
 
     def agrees(self, position: np.ndarray, covariance: np.ndarray, gate: float) -> bool:
+        """True when a sighting lies within the Mahalanobis ``gate`` of this candidate."""
         difference = position - self.position
         spread = covariance + np.linalg.inv(self.information) + np.eye(2) * 1e-12
         return float(difference @ np.linalg.solve(spread, difference)) <= gate
 
     def add(self, position: np.ndarray, covariance: np.ndarray, label: str, frame: int) -> None:
+        """Fuse one sighting (information form) and count its class vote."""
         information = np.linalg.inv(covariance + np.eye(2) * 1e-12)
         self.information = self.information + information
         self.weighted_sum = self.weighted_sum + information @ position

@@ -65,6 +65,7 @@ class RangeCalibration:
 
     @classmethod
     def from_dict(cls, data: dict) -> "RangeCalibration":
+        """The calibration from its ``to_dict`` form (as stored in calibration.json and the ONNX metadata)."""
         laws = {k: PowerLaw(**data[k]) for k in ("width_law", "height_law")}
         colour = PowerLaw(**data["colour_law"]) if data.get("colour_law") else None
         rest = {k: v for k, v in data.items() if k not in ("width_law", "height_law", "colour_law")}

@@ -43,6 +43,7 @@ class ImageEvaluation:
         return [(int(kept[p]), r) for p, r in pairs]
 
     def counts(self, conf: float) -> dict[str, int]:
+        """TP, FP, FN and TN of this image at ``conf``, as the thesis counted them (TN: no label, no detection)."""
         tp = len(self.match(conf))
         kept = len(self.kept(conf))
         labels = len(self.truth_classes)
