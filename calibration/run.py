@@ -54,7 +54,8 @@ def plot_fit(samples: list[SizeSample], calibration: RangeCalibration, png: Path
     """Range against width and height (log-log) with the fitted laws and the thesis's."""
     from detector.figures import plt, save_figure
 
-    columns = as_arrays(samples, calibration.reference_width_px)
+    columns = as_arrays(samples, calibration.reference_width_px,
+                        calibration.hfov_deg if calibration.off_axis_corrected else None)
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
     for ax, key, law, thesis in ((axes[0], "width", calibration.width_law, THESIS_WIDTH_LAW),
                                  (axes[1], "height", calibration.height_law, THESIS_HEIGHT_LAW)):
@@ -69,7 +70,8 @@ def plot_fit(samples: list[SizeSample], calibration: RangeCalibration, png: Path
             ax.plot(grid, thesis[0] * grid ** thesis[1], linestyle="--", label=f"thesis {thesis[0]} px^{thesis[1]}")
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_xlabel(f"rotated-box {key} (px at {calibration.reference_width_px} px image width)")
+        on_axis = ", on the optical axis" if calibration.off_axis_corrected else ""
+        ax.set_xlabel(f"rotated-box {key} (px at {calibration.reference_width_px} px image width{on_axis})")
         ax.set_ylabel("true range (m)")
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=8)
@@ -85,14 +87,15 @@ def print_calibration(result: dict) -> None:
     report = result["report"]
     laws = Table(title=f"range laws from {report['samples']} poles ({report['source']}), "
                        f"pixels at {report['reference_width_px']} px width")
-    for column in ("law", "a", "b", "R^2", "relative std", "thesis-style fit (per-range means)"):
+    for column in ("law", "a", "b", "R^2", "relative std", "filter is told", "thesis-style fit (per-range means)"):
         laws.add_column(column)
     for key in ("width", "height", "colour"):
         if key in report:
             fit = report[key]
             mean_fit = fit.get("per_distance_mean_fit")
+            told = (result["calibration"].get(f"{key}_law") or {}).get("relative_std", fit["relative_std"])
             laws.add_row(key if key != "colour" else "colour (px per cm)", f"{fit['a']:.4g}", f"{fit['b']:.4f}",
-                         f"{fit['r2']:.4f}", f"{100 * fit['relative_std']:.1f} %",
+                         f"{fit['r2']:.4f}", f"{100 * fit['relative_std']:.1f} %", f"{100 * told:.1f} %",
                          f"{mean_fit['a']:.4g} * x^{mean_fit['b']:.4f}" if mean_fit else "-")
     errors = Table(title="mean relative range error by true range (foot: poles with a camera pose and the foot "
                          "in view)")

@@ -15,6 +15,7 @@ from detector.matching import mask_iou
 from naoslam.camera import NAO_HFOV_DEG, CameraPose, PinholeCamera
 from naoslam.detector import LandmarkDetector, mask_centre_column, rotated_box_of_mask
 from naoslam.ground import GroundView
+from naoslam.measurement import on_axis_size
 
 
 @dataclass(frozen=True)
@@ -114,9 +115,12 @@ def touches_border(polygon: np.ndarray) -> bool:
     return bool(polygon.min() <= BORDER_MARGIN or polygon.max() >= 1.0 - BORDER_MARGIN)
 
 
-def as_arrays(samples: list[SizeSample], reference_width: int) -> dict[str, np.ndarray]:
-    """Columns of the samples, pixel sizes scaled to ``reference_width``."""
+def as_arrays(samples: list[SizeSample], reference_width: int,
+              hfov_deg: float | None = None) -> dict[str, np.ndarray]:
+    """Columns of the samples, pixel sizes scaled to ``reference_width`` and, given the camera's ``hfov_deg``, taken
+    to the optical axis (:func:`naoslam.measurement.on_axis_size`; a sample without a centre column is kept as is)."""
+    sizes = [on_axis_size(s.width_px, s.height_px, s.centre_column, s.image_width, hfov_deg)
+             if hfov_deg is not None and s.centre_column is not None else (s.width_px, s.height_px) for s in samples]
     scale = np.array([reference_width / s.image_width for s in samples])
-    return {"range": np.array([s.range_m for s in samples]), "width": np.array([s.width_px for s in samples]) * scale,
-            "height": np.array([s.height_px for s in samples]) * scale,
-            "partial": np.array([s.partial for s in samples])}
+    return {"range": np.array([s.range_m for s in samples]), "width": np.array([w for w, _ in sizes]) * scale,
+            "height": np.array([h for _, h in sizes]) * scale, "partial": np.array([s.partial for s in samples])}

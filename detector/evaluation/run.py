@@ -117,7 +117,7 @@ def _range(pred, p: int, calibration, image_width: int) -> float | None:
         return calibration.colour_range(pred.band_distances[p], image_width)[0] if calibration.colour_law else None
     if pred.sizes[p] is None:
         return None
-    return calibration.range_from_box(*pred.sizes[p], image_width)[0]
+    return calibration.range_from_box(*pred.sizes[p], image_width, column=pred.centre_columns[p])[0]
 
 
 def _width_recall(m: dict, index: int) -> str:
