@@ -84,6 +84,28 @@ def test_shipped_onnx_carries_calibration_and_its_threshold():
     assert LandmarkDetector(conf=0.9).conf == 0.9
 
 
+def _measured_range(detector: LandmarkDetector, code: str, range_m: float, angle_deg: float) -> float:
+    """The shipped front end's range (fused box laws, no camera pose) to one rendered pole."""
+    from naoslam.measurement import MeasurementModel
+
+    camera = PinholeCamera(640, 480)
+    scene = calibration_scene(np.random.default_rng(7), camera, code, range_m=range_m, angle_deg=angle_deg)
+    frame = cv2.cvtColor((render_scene(scene).image * 255 + 0.5).astype(np.uint8), cv2.COLOR_RGB2BGR)
+    measured = MeasurementModel(detector.calibration, detector.conf).measure(detector(frame), 640)
+    (measurement,) = [m for m in measured if m.signature == code]
+    return measurement.range_m
+
+
+@pytest.mark.parametrize("angle_deg", [-24.0, 24.0])
+def test_shipped_calibration_ranges_a_pole_at_the_frame_edge_as_one_ahead(angle_deg):
+    """A pinhole camera stretches a pole near the frame's edge; the shipped laws are fitted on on-axis sizes."""
+    detector = LandmarkDetector()
+    assert detector.calibration.off_axis_corrected
+    ahead = _measured_range(detector, "yp", 3.0, 0.0)
+    assert ahead == pytest.approx(3.0, rel=0.04)
+    assert _measured_range(detector, "yp", 3.0, angle_deg) == pytest.approx(ahead, rel=0.05)
+
+
 def _photographs() -> dict[str, np.ndarray]:
     """Real photographs installed with scikit-image and matplotlib, BGR: none shows a pole, none was trained on
     (the renderer takes only scikit-image's grey brick, gravel and grass as wall and floor textures)."""
