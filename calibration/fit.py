@@ -138,8 +138,9 @@ def method_errors(chosen: list[SizeSample], calibration: RangeCalibration) -> di
     foot or it disagrees)."""
     row: dict = {"samples": len(chosen)}
     for method in ("width", "height", "rule", "fused"):
-        errors = [abs(calibration.range_from_box(s.width_px, s.height_px, s.image_width, method, s.centre_column)[0] - s.range_m)
-                  / s.range_m for s in chosen]
+        ranges = [calibration.range_from_box(s.width_px, s.height_px, s.image_width, method, s.centre_column)[0]
+                  for s in chosen]
+        errors = [abs(r - s.range_m) / s.range_m for r, s in zip(ranges, chosen)]
         row[method] = 100 * float(np.mean(errors))
     with_foot = [s for s in chosen if s.foot_range_m is not None]
     row["foot_samples"] = len(with_foot)
@@ -154,7 +155,7 @@ def _with_foot(sample: SizeSample, calibration: RangeCalibration) -> float:
     """The range ``MeasurementModel`` gives with a camera pose: the fused box range and the foot-row range combined,
     the box range alone where they disagree."""
     box_range, box_std, _ = calibration.range_from_box(sample.width_px, sample.height_px, sample.image_width, "fused",
-                                                  sample.centre_column)
+                                                       sample.centre_column)
     if sample.foot_range_m is None:
         return box_range
     fused = fuse_with_foot(box_range, box_std, sample.foot_range_m, sample.foot_range_std)

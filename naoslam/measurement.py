@@ -3,9 +3,10 @@
 Bearing: from the mask's centre column, exact pinhole (atan((cx - u) / f)) or the 2024 thesis's linear form.
 Range: power laws ``range = a * px^b`` of the rotated box's width and height (pixel sizes normalised to the
 calibration's reference image width and, for calibrations fitted so, to the size the pole would have on the optical
-axis: a pinhole camera stretches a pole off to the side, see :func:`on_axis_size`), chosen by the thesis's rule (width when the box is wider than an upright
-pole, i.e. cut at the top or bottom, height otherwise) or fused by inverse variance when both are trustworthy.
-Standard deviations come from the calibration residuals, so the filter's measurement noise comes from data.
+axis: a pinhole camera stretches a pole off to the side, see :func:`on_axis_size`), chosen by the thesis's rule
+(width when the box is wider than an upright pole, i.e. cut at the top or bottom, height otherwise) or fused by
+inverse variance when both are trustworthy. Standard deviations come from the calibration (its residuals, at least a
+walking robot's noise), so the filter's measurement noise comes from data.
 """
 from __future__ import annotations
 
