@@ -29,12 +29,17 @@ def test_shipped_files_exist_within_the_size_budget():
     assert shipped_model(int8=True).stat().st_size < shipped_model().stat().st_size / 2
 
 
+def _rendered_pole(code: str, range_m: float, angle_deg: float, seed: int):
+    """One pole rendered by a 640x480 Nao camera: the BGR uint8 frame and the render (with the pole's mask)."""
+    scene = calibration_scene(np.random.default_rng(seed), PinholeCamera(640, 480), code, range_m=range_m,
+                              angle_deg=angle_deg)
+    frame = render_scene(scene)
+    return cv2.cvtColor((frame.image * 255 + 0.5).astype(np.uint8), cv2.COLOR_RGB2BGR), frame
+
+
 @pytest.mark.parametrize("code", ["bp", "pg", "yp"])
 def test_shipped_onnx_finds_a_rendered_pole_without_torch(code, tmp_path):
-    camera = PinholeCamera(640, 480)
-    scene = calibration_scene(np.random.default_rng(3), camera, code, range_m=1.5, angle_deg=-10.0)
-    frame = render_scene(scene)
-    image = cv2.cvtColor((frame.image * 255 + 0.5).astype(np.uint8), cv2.COLOR_RGB2BGR)
+    image, frame = _rendered_pole(code, 1.5, -10.0, seed=3)
     cv2.imwrite(str(tmp_path / "frame.png"), image)
     np.save(tmp_path / "mask.npy", frame.poles[0].mask)
     code_run = (
@@ -62,9 +67,7 @@ def _readme_robot_loop() -> str:
 
 
 def test_readme_robot_loop_measures_a_rendered_pole(tmp_path):
-    camera = PinholeCamera(640, 480)
-    scene = calibration_scene(np.random.default_rng(5), camera, "pg", range_m=2.0, angle_deg=0.0)
-    image = cv2.cvtColor((render_scene(scene).image * 255 + 0.5).astype(np.uint8), cv2.COLOR_RGB2BGR)
+    image, _ = _rendered_pole("pg", 2.0, 0.0, seed=5)
     cv2.imwrite(str(tmp_path / "frame.jpg"), image)
     result = subprocess.run([sys.executable, "-c", _readme_robot_loop()], cwd=tmp_path, capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
@@ -88,9 +91,7 @@ def _measured_range(detector: LandmarkDetector, code: str, range_m: float, angle
     """The shipped front end's range (fused box laws, no camera pose) to one rendered pole."""
     from naoslam.measurement import MeasurementModel
 
-    camera = PinholeCamera(640, 480)
-    scene = calibration_scene(np.random.default_rng(7), camera, code, range_m=range_m, angle_deg=angle_deg)
-    frame = cv2.cvtColor((render_scene(scene).image * 255 + 0.5).astype(np.uint8), cv2.COLOR_RGB2BGR)
+    frame, _ = _rendered_pole(code, range_m, angle_deg, seed=7)
     measured = MeasurementModel(detector.calibration, detector.conf).measure(detector(frame), 640)
     (measurement,) = [m for m in measured if m.signature == code]
     return measurement.range_m
