@@ -13,11 +13,15 @@ from naoslam.measurement import PowerLaw, RangeCalibration, bearing_of_column, f
 
 #: Distance bins (m) of the per-distance report.
 RANGE_BINS = (0.0, 0.75, 1.25, 2.0, 3.0, 4.0, 6.0)
-#: The least relative range noise each law is given, whatever its fit's residuals: still calibration shots show less
-#: than a walking robot's frames do (sway blurs and widens a mask). Measured with the shipped model v5 on 3,681
-#: sightings in rendered walks (square, circle and figure 8, seeds 10-12): on-axis width law robust s.d. 0.108,
-#: height law 0.020 (rms 0.025). A filter told less than this is over-confident and maps a pole twice.
-WALK_RELATIVE_STD = {"width": 0.11, "height": 0.025}
+#: The least relative range noise each law is given, whatever its fit's residuals, unless ``--noise-data`` measures
+#: it: still calibration shots show less than a walking robot's frames do (sway blurs and widens a mask). Measured
+#: with the shipped model v5 (``robust_spread``, bias included) on rendered walks, ``poles synth --walk
+#: {square,circle,figure8} --seed {10,11,12}`` then ``poles calibrate --model shipped --noise-data ...``: width law
+#: 15.9 % (3,587 sightings, reading 9 % near), height law 2.0 % (3,423). A filter told less than this is
+#: over-confident and maps a pole twice.
+WALK_RELATIVE_STD = {"width": 0.16, "height": 0.020}
+#: Fewest sightings of a walk that measure a law's noise (``--noise-data``).
+MIN_NOISE_SIGHTINGS = 20
 
 
 @dataclass(frozen=True)
@@ -63,10 +67,11 @@ def fit_law(px: np.ndarray, range_m: np.ndarray) -> LawFit:
     return LawFit(law, r2, len(px), per_distance)
 
 
-def calibrate(samples: list[SizeSample], geometry: PoleGeometry = PoleGeometry(),
-              hfov_deg: float = NAO_HFOV_DEG) -> tuple[RangeCalibration, dict]:
-    """Fit the width and height laws on on-axis sizes (height only on whole poles; each law's noise at least a
-    walking robot's), the colour law and the bearing noise."""
+def calibrate(samples: list[SizeSample], geometry: PoleGeometry = PoleGeometry(), hfov_deg: float = NAO_HFOV_DEG,
+              walk_samples: list[SizeSample] | None = None) -> tuple[RangeCalibration, dict]:
+    """Fit the width and height laws on on-axis sizes (height only on whole poles), the colour law and the bearing
+    noise. Each law's noise is at least a walking robot's: measured on ``walk_samples`` (sightings in a walk's
+    frames) when given, else ``WALK_RELATIVE_STD``."""
     reference_width = samples[0].image_width
     columns = as_arrays(samples, reference_width, hfov_deg)
     whole = ~columns["partial"]
@@ -79,8 +84,9 @@ def calibrate(samples: list[SizeSample], geometry: PoleGeometry = PoleGeometry()
               "height": height_fit.as_dict(), "upright_ratio": upright_ratio}
     colour = _colour_law(samples, geometry, report)
     bearing_std = _bearing_std(samples, hfov_deg, report)
-    calibration = RangeCalibration(_walk_noise(width_fit.law, "width"), _walk_noise(height_fit.law, "height"),
-                                   reference_width, upright_ratio,
+    walk = None if walk_samples is None else as_arrays(walk_samples, reference_width, hfov_deg)
+    calibration = RangeCalibration(_walk_noise(width_fit.law, "width", walk, report),
+                                   _walk_noise(height_fit.law, "height", walk, report), reference_width, upright_ratio,
                                    bearing_std_rad=bearing_std, hfov_deg=hfov_deg, colour_law=colour,
                                    off_axis_corrected=True)
     report["errors_by_range"] = range_errors(samples, calibration)
@@ -90,9 +96,32 @@ def calibrate(samples: list[SizeSample], geometry: PoleGeometry = PoleGeometry()
     return calibration, report
 
 
-def _walk_noise(law: PowerLaw, size: str) -> PowerLaw:
-    """The fitted law with its relative s.d. raised to at least the walking robot's (``WALK_RELATIVE_STD``)."""
-    return replace(law, relative_std=max(law.relative_std, WALK_RELATIVE_STD[size]))
+def _walk_noise(law: PowerLaw, size: str, walk: dict[str, np.ndarray] | None, report: dict) -> PowerLaw:
+    """The fitted law with its relative s.d. raised to at least a walking robot's: the law's spread on the walk's
+    sightings (heights of whole poles only), or ``WALK_RELATIVE_STD`` without them."""
+    if walk is None:
+        floor = WALK_RELATIVE_STD[size]
+    else:
+        keep = np.ones_like(walk["partial"]) if size == "width" else ~walk["partial"]
+        if keep.sum() < MIN_NOISE_SIGHTINGS:
+            raise ValueError(f"--noise-data: {int(keep.sum())} sightings measure the {size} law, at least "
+                             f"{MIN_NOISE_SIGHTINGS} needed - add frames of the walk (whole poles for the height law)")
+        errors = relative_log_errors(law, walk[size][keep], walk["range"][keep])
+        floor = robust_spread(errors)
+        report[size]["walk"] = {"sightings": int(keep.sum()), "relative_std": floor,
+                                "median_log_error": float(np.median(errors))}
+    return replace(law, relative_std=max(law.relative_std, floor))
+
+
+def relative_log_errors(law: PowerLaw, px: np.ndarray, range_m: np.ndarray) -> np.ndarray:
+    """log(range the law gives / true range) for each sighting: its relative range error."""
+    return np.log(law(np.asarray(px, float)) / np.asarray(range_m, float))
+
+
+def robust_spread(errors: np.ndarray) -> float:
+    """The s.d. of a normal error with the same median absolute size, 1.4826 x median |error|: bias included (an
+    error about the truth, not the mean), and not moved by the few wild sightings a filter's gate drops."""
+    return float(1.4826 * np.median(np.abs(errors)))
 
 
 def _colour_law(samples: list[SizeSample], geometry: PoleGeometry, report: dict) -> PowerLaw | None:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -17,8 +18,10 @@ THESIS_HEIGHT_LAW = (209.16, -0.965)
 
 
 def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv: Path | None = None,
-                    plot: Path | None = None, embed: Path | None = None, force: bool = False) -> dict:
-    """Fit from ``data`` and write ``out`` (calibration + report); returns what was written."""
+                    plot: Path | None = None, embed: Path | None = None, force: bool = False,
+                    noise_data: Sequence[Path] = ()) -> dict:
+    """Fit from ``data`` and write ``out`` (calibration + report); returns what was written. ``noise_data``: frames
+    of a walk with true ranges (e.g. ``poles synth --walk``), measured the same way, set the noise the filter is told."""
     if Path(out).exists() and not force:
         raise FileExistsError(f"{out} exists - pick another --out or add --force")
     if embed:
@@ -26,8 +29,11 @@ def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv:
 
         read_info(embed)  # refuse a model that cannot take the calibration before anything is written
     samples = collect_samples(data, model, truth_csv)
-    calibration, report = calibrate(samples)
+    walk = [s for folder in noise_data for s in collect_samples(folder, model)] if noise_data else None
+    calibration, report = calibrate(samples, walk_samples=walk)
     report["source"] = f"masks of {model}" if model else "label masks"
+    report["noise_source"] = (", ".join(str(folder) for folder in noise_data) if noise_data
+                              else "the default walk floor (WALK_RELATIVE_STD)")
     result = {"calibration": calibration.to_dict(), "report": report}
     if embed:
         embed_calibration(embed, calibration)
@@ -109,6 +115,11 @@ def print_calibration(result: dict) -> None:
                        f"{row['fused+foot']:.1f} %" if "fused+foot" in row else "-")
     console = Console()
     console.print(laws)
+    walk = {key: report[key]["walk"] for key in ("width", "height") if "walk" in report[key]}
+    console.print("the filter is told the larger of each law's residual and a walking robot's noise: "
+                  + (", ".join(f"{key} {100 * w['relative_std']:.1f} % (median error {100 * w['median_log_error']:+.1f}"
+                               f" %, {w['sightings']} sightings)" for key, w in walk.items())
+                     + f" measured on {report['noise_source']}" if walk else report["noise_source"]))
     console.print(errors)
     console.print(f"upright width/height ratio {report['upright_ratio']:.3f}"
                   + (f"; bearing error {report['bearing_error_deg']['mean']:+.2f} +- "

@@ -9,6 +9,7 @@ from augment.config import OPERATIONS, AugmentConfig
 from detector.errors import run_command
 from detector.openmp_wait import sleep_while_waiting
 from detector.synth.scene import SceneConfig
+from naoslam.sim import PATHS
 
 
 #: Augmentation strength limits that have a flag of their own (AugmentConfig field -> help text).
@@ -62,12 +63,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     synth = sub.add_parser("synth", help="render a synthetic annotated pole dataset (Roboflow YOLOv8 layout)")
     synth.add_argument("--out", type=Path, required=True, help="output dataset folder (must not exist, or use --force)")
-    synth.add_argument("--images", type=int, default=500, help="number of images (default 500)")
+    synth.add_argument("--images", type=int, help="number of images (default 500; with --walk, all its frames)")
     synth.add_argument("--seed", type=int, default=0, help="random seed: same seed, same dataset")
     synth.add_argument("--size", type=_size, default=(640, 480), help="image size WIDTHxHEIGHT (default 640x480)")
     synth.add_argument("--hfov", type=float, default=56.3, help="horizontal field of view in degrees (default 56.3)")
     synth.add_argument("--calibration-shots", action="store_true",
                        help="one pole per image at known distances 0.5-5 m and angles 0, +-10, +-20 deg")
+    synth.add_argument("--walk", choices=PATHS,
+                       help="the frames of the walk `poles slam --sim WALK --seed SEED` sees, labelled with true "
+                            "ranges: a walking robot's sightings for `poles calibrate --noise-data`")
     synth.add_argument("--backgrounds", type=Path,
                        help="folder of real robot-camera frames without poles: draw the poles over them")
     synth.add_argument("--backdrop-share", type=float, default=1.0,
@@ -168,6 +172,10 @@ def build_parser() -> argparse.ArgumentParser:
     calib.add_argument("--truth", type=Path, help="CSV image,class,range_m instead of annotations.json")
     calib.add_argument("--plot", type=Path, help="write the fit plot (PNG)")
     calib.add_argument("--embed", type=Path, help="store the calibration in this ONNX model's metadata")
+    calib.add_argument("--noise-data", type=Path, action="append", default=[], metavar="WALK",
+                       help="frames of a walk with true ranges (`poles synth --walk`, or your own robot's with "
+                            "annotations.json), measured like --data: the noise the filter is told (repeatable; "
+                            "default: the walk floor measured with the shipped model)")
     calib.add_argument("--force", action="store_true")
 
     evaluate = sub.add_parser("evaluate", help="precision, recall and mask IoU per image on held-out frames")
@@ -185,7 +193,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     slam = sub.add_parser("slam", help="run an EKF SLAM back end on a simulated walk, a UTIAS log or a recording")
     source = slam.add_mutually_exclusive_group(required=True)
-    source.add_argument("--sim", choices=("square", "circle", "figure8"), help="simulated walk on the SPL field")
+    source.add_argument("--sim", choices=PATHS, help="simulated walk on the SPL field")
     source.add_argument("--utias", type=Path, help="UTIAS MRCLAM folder (Odometry.dat, Measurement.dat, ...)")
     source.add_argument("--frames", type=Path, help="recorded frames named <time>.jpg (with --odometry)")
     slam.add_argument("--odometry", type=Path, help="odometry CSV t,x,y,theta for --frames")
@@ -313,16 +321,19 @@ def main(argv: list[str] | None = None) -> int:
 
 def _synth(args: argparse.Namespace) -> int:
     from detector.synth.backdrops import scan_backdrops
-    from detector.synth.generate import SynthJob, generate_dataset
+    from detector.synth.generate import DEFAULT_SYNTH_IMAGES, SynthJob, generate_dataset
+    from detector.synth.walk import walk_frames
 
-    if args.images < 1:
+    images = args.images if args.images is not None else (
+        walk_frames(args.walk, args.seed) if args.walk else DEFAULT_SYNTH_IMAGES)
+    if images < 1:
         raise ValueError("--images must be at least 1")
     backgrounds = scan_backdrops(args.backgrounds) if args.backgrounds is not None else ()
-    job = SynthJob(args.images, args.seed, *args.size, hfov_deg=args.hfov, calibration_shots=args.calibration_shots,
-                   backgrounds=backgrounds, backdrop_share=args.backdrop_share,
+    job = SynthJob(images, args.seed, *args.size, hfov_deg=args.hfov, calibration_shots=args.calibration_shots,
+                   backgrounds=backgrounds, backdrop_share=args.backdrop_share, walk=args.walk,
                    config=SceneConfig(nominal_paint_share=args.nominal_paint_share))
     out = generate_dataset(args.out, job, workers=args.workers, preview=args.preview, force=args.force)
-    print(f"wrote {args.images} images to {out}")
+    print(f"wrote {images} images to {out}")
     return 0
 
 
@@ -419,7 +430,8 @@ def _export(args: argparse.Namespace) -> int:
 def _calibrate(args: argparse.Namespace) -> int:
     from calibration.run import print_calibration, run_calibration
 
-    result = run_calibration(args.data, args.out, args.model, args.truth, args.plot, args.embed, args.force)
+    result = run_calibration(args.data, args.out, args.model, args.truth, args.plot, args.embed, args.force,
+                             args.noise_data)
     print_calibration(result)
     print(f"wrote {args.out}" + (f", {args.plot}" if args.plot else "") + (f"; embedded in {args.embed}" if args.embed else ""))
     return 0

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -61,6 +62,39 @@ def test_calibration_shots_recover_the_camera_law(calibration_shots):
     assert report["width"]["relative_std"] < 0.05 and report["height"]["relative_std"] < 0.03
     assert calibration.width_law.relative_std == WALK_RELATIVE_STD["width"]
     assert calibration.height_law.relative_std == WALK_RELATIVE_STD["height"]
+
+
+def test_a_walks_sightings_set_the_noise_the_filter_is_told(calibration_shots):
+    shots = collect_samples(calibration_shots, progress=False)
+    plain, _ = calibrate(shots)
+    rng = np.random.default_rng(0)
+    # A walk whose masks read 15 % off in width and 4 % in height (s.d.), where the still shots read 1-4 %.
+    walk = [replace(s, width_px=s.width_px * math.exp(rng.normal(0, 0.15)),
+                    height_px=s.height_px * math.exp(rng.normal(0, 0.04))) for s in shots for _ in range(4)]
+    calibration, report = calibrate(shots, walk_samples=walk)
+    assert calibration.width_law.relative_std == pytest.approx(0.15, rel=0.15)
+    assert calibration.height_law.relative_std == pytest.approx(0.04, rel=0.15)
+    assert report["height"]["walk"]["sightings"] == 4 * sum(not s.partial for s in shots)
+    # The walk sets the noise only: the laws are the still shots'.
+    assert (calibration.width_law.a, calibration.height_law.b) == (plain.width_law.a, plain.height_law.b)
+    # A walk that reads as well as the shots tells the filter the fit's own residual, not the default floor.
+    steady, report = calibrate(shots, walk_samples=shots)
+    assert steady.height_law.relative_std == pytest.approx(report["height"]["relative_std"], rel=0.5)
+    assert steady.height_law.relative_std < WALK_RELATIVE_STD["height"]
+    with pytest.raises(ValueError, match="--noise-data: 5 sightings measure the width law"):
+        calibrate(shots, walk_samples=shots[:5])
+
+
+def test_calibrate_measures_the_noise_on_a_rendered_walk(calibration_shots, tmp_path, capsys):
+    walk = generate_dataset(tmp_path / "walk", SynthJob(30, seed=1, walk="square"), workers=2, progress=False)
+    out = tmp_path / "calibration.json"
+    assert main(["calibrate", "--data", str(calibration_shots), "--noise-data", str(walk), "--out", str(out)]) == 0
+    report = json.loads(out.read_text())["report"]
+    labelled = sum(len(i["landmarks"]) for i in json.loads((walk / "annotations.json").read_text())["images"].values())
+    assert report["width"]["walk"]["sightings"] == labelled >= 20
+    assert report["noise_source"] == str(walk) and f"measured on {walk}" in capsys.readouterr().out.replace("\n", "")
+    assert load_calibration(out).width_law.relative_std == max(report["width"]["relative_std"],
+                                                               report["width"]["walk"]["relative_std"])
 
 
 @pytest.mark.parametrize("bearing_deg", [0.0, 12.0, -20.0, 28.0])

@@ -3,10 +3,13 @@ from __future__ import annotations
 
 import colorsys
 import json
+import math
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -16,6 +19,7 @@ from detector.datasets.polygons import mask_to_polygon, polygon_to_mask
 from detector.synth.generate import CALIBRATION_RANGES_M, MIN_LABEL_PIXELS, SynthJob, generate_dataset, render_one
 from detector.synth.render import render_scene
 from detector.synth.scene import sample_scene
+from detector.synth.walk import frame_steps, render_walk, simulated_walk, walk_camera_poses, walk_frames
 from naoslam.camera import PinholeCamera
 
 REPO = Path(__file__).resolve().parents[1]
@@ -76,6 +80,35 @@ def test_calibration_shots(tmp_path):
     assert sorted(set(ranges)) == sorted(CALIBRATION_RANGES_M) and len(ranges) == 18  # any 9 shots cover every range
     assert all(len(i["landmarks"]) == 1 for i in annotations.values())
     assert {s.split for s in load_dataset(out).samples} == {"test"}
+
+
+def test_a_walks_frames_are_the_frames_slam_sees_labelled_with_each_poles_true_range(tmp_path):
+    out = generate_dataset(tmp_path / "walk", SynthJob(8, seed=2, walk="circle"), workers=2, progress=False)
+    walk = simulated_walk("circle", 2)
+    first_eight = replace(walk, steps=walk.steps[:frame_steps(walk)[7] + 1])
+    poses, frames = walk_camera_poses(first_eight, seed=2), render_walk(first_eight, seed=2, workers=1, progress=False)
+    annotations = json.loads((out / "annotations.json").read_text())["images"]
+    assert sorted(annotations) == [f"walk_{i:05d}.jpg" for i in range(8)]
+    assert {s.split for s in load_dataset(out).samples} == {"test"}
+    labelled = 0
+    for (name, entry), pose, frame in zip(sorted(annotations.items()), poses, frames):
+        ok, encoded = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, 90])
+        assert (out / "test" / "images" / name).read_bytes() == encoded.tobytes()  # the very frame SLAM is shown
+        assert entry["camera"]["x"] == pytest.approx(pose.x, abs=1e-4)
+        assert entry["camera"]["pitch_rad"] == pytest.approx(pose.pitch, abs=1e-5)
+        for landmark in entry["landmarks"]:
+            x, y = walk.landmarks[landmark["cls"]]
+            assert landmark["range_m"] == pytest.approx(math.hypot(x - pose.x, y - pose.y), abs=1e-3)
+            labelled += 1
+    assert labelled >= 4
+
+
+def test_a_walk_refuses_more_frames_than_it_takes_and_other_scene_sources(tmp_path, capsys):
+    frames = walk_frames("square", 0)
+    assert main(["synth", "--walk", "square", "--images", str(frames + 1), "--out", str(tmp_path / "w")]) == 2
+    assert f"takes {frames} frames" in capsys.readouterr().err and not (tmp_path / "w").exists()
+    assert main(["synth", "--walk", "square", "--calibration-shots", "--out", str(tmp_path / "w")]) == 2
+    assert "leave out --calibration-shots" in capsys.readouterr().err
 
 
 def test_cli_synth_check_and_preview(tmp_path, capsys):

@@ -20,9 +20,13 @@ from detector.synth.readable import misread_bands
 from detector.synth.objects import repainted
 from detector.synth.render import MIN_BAND_PIXELS, MIN_BAND_SHARE, Frame, PoleTruth, render_scene
 from detector.synth.scene import BackdropShot, Scene, SceneConfig, calibration_scene, sample_scene
+from detector.synth.walk import frame_steps, simulated_walk, walk_frames, walk_scene
 from naoslam.camera import PinholeCamera
 from naoslam.landmarks import CLASSES
+from naoslam.sim import PATHS
 
+#: Images ``poles synth`` renders unless told.
+DEFAULT_SYNTH_IMAGES = 500
 #: Thesis split: 70 % train, 20 % test, 10 % valid.
 SPLIT_RATIOS = {"train": 0.7, "test": 0.2, "valid": 0.1}
 CALIBRATION_RANGES_M = (0.5, 0.75, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0)
@@ -49,8 +53,15 @@ class SynthJob:
     backgrounds: tuple[Path, ...] = ()
     #: Fraction of frames drawn over a backdrop when ``backgrounds`` is given; the rest are fully ray-cast.
     backdrop_share: float = 1.0
+    #: Render the first ``images`` frames of this simulated walk (``naoslam.sim.PATHS``, the walk of ``poles slam
+    #: --sim`` with this seed) instead of random scenes: a swaying camera, the six poles at their field positions.
+    walk: str | None = None
 
     def __post_init__(self) -> None:
+        if self.walk is not None and self.walk not in PATHS:
+            raise ValueError(f"--walk {self.walk!r} is not one of {', '.join(PATHS)}")
+        if self.walk is not None and (self.calibration_shots or self.backgrounds):
+            raise ValueError("--walk renders the walk's own venue: leave out --calibration-shots and --backgrounds")
         if not 0.0 <= self.backdrop_share <= 1.0:
             raise ValueError(f"--backdrop-share {self.backdrop_share} must lie between 0 and 1")
         if not 1.0 <= self.hfov_deg <= 179.0:
@@ -120,18 +131,20 @@ def draw_frame(job: SynthJob, index: int) -> tuple[Scene, np.ndarray, list[PoleT
     A pole whose band reads as another colour in the finished pixels (``readable.misread_bands``) gets fresh paint
     and the same scene is rendered again, up to ``MAX_RENDERS`` renders; a pole still misread after that stays
     unlabelled. Only the misread poles change, so the frames written keep the sampler's camera poses, pole counts,
-    backdrops and looks (back light included) instead of favouring the scenes that happen to read well.
+    backdrops and looks (back light included) instead of favouring the scenes that happen to read well. A walk's
+    poles are the same poles in every frame, so a walk is rendered once and a misread pole is left unlabelled.
     """
     global _EFFECTS
     if _EFFECTS is None:
         _EFFECTS = camera_effects()
     scene = _draw_scene(job, index, np.random.default_rng([job.seed, index]), _pick_backdrop(job, index))
-    for renders in range(1, MAX_RENDERS + 1):
+    max_renders = 1 if job.walk else MAX_RENDERS
+    for renders in range(1, max_renders + 1):
         frame = _render(job, scene)
         image = apply_camera_effects(_EFFECTS, (frame.image * 255.0 + 0.5).astype(np.uint8), scene.effects_seed)
         labelled = [pole for pole in frame.poles if pole.mask.sum() >= MIN_LABEL_PIXELS and pole.nameable]
         misread = {pole.cylinder for pole in labelled if misread_bands(image, pole.cls, pole.band_masks)}
-        if not misread or renders == MAX_RENDERS:
+        if not misread or renders == max_renders:
             break
         rng = np.random.default_rng([job.seed, index, renders])
         for cylinder in sorted(misread):
@@ -154,6 +167,9 @@ def _draw_scene(job: SynthJob, index: int, rng: np.random.Generator, backdrop_pa
         range_m = CALIBRATION_RANGES_M[index % len(CALIBRATION_RANGES_M)]
         angle = CALIBRATION_ANGLES_DEG[(index // len(CALIBRATION_RANGES_M)) % len(CALIBRATION_ANGLES_DEG)]
         return calibration_scene(rng, camera, CLASSES[index % len(CLASSES)], range_m, angle, job.config)
+    if job.walk:
+        walk = simulated_walk(job.walk, job.seed)
+        return walk_scene(walk, frame_steps(walk)[index], job.seed, camera)
     return sample_scene(rng, camera, job.config)
 
 
@@ -184,16 +200,21 @@ def generate_dataset(out: str | Path, job: SynthJob, *, workers: int | None = No
                      force: bool = False, progress: bool = True) -> Path:
     """Render ``job.images`` frames into a Roboflow-layout dataset at ``out`` with ``annotations.json``.
 
-    Calibration shots all go to the ``test`` split; other frames are split 70/20/10 (train/test/valid).
+    Calibration shots and a walk's frames all go to the ``test`` split; other frames are split 70/20/10
+    (train/test/valid).
     """
-    splits = ["test"] * job.images if job.calibration_shots else split_names(job.images, job.seed)
+    if job.walk and job.images > walk_frames(job.walk, job.seed):
+        raise ValueError(f"--images {job.images}: the {job.walk} walk takes {walk_frames(job.walk, job.seed)} frames "
+                         "- ask for that many or fewer")
+    kind = "calib" if job.calibration_shots else "walk" if job.walk else "synth"
+    splits = ["test"] * job.images if kind != "synth" else split_names(job.images, job.seed)
     workers = workers or default_workers(job.images)
     annotations = {"classes": list(CLASSES), "generator": _describe(job), "fields": ANNOTATION_FIELDS, "images": {}}
     tiles = []
     with DatasetWriter(out, force=force) as writer:
         results = ordered_map(_render_star, ((job, i) for i in range(job.images)), workers)
         for sample in tqdm(results, total=job.images, desc="rendering", unit="img", disable=not progress):
-            name = f"{'calib' if job.calibration_shots else 'synth'}_{sample.index:05d}.jpg"
+            name = f"{kind}_{sample.index:05d}.jpg"
             writer.add(splits[sample.index], name, sample.jpeg, sample.instances)
             annotations["images"][name] = {"split": splits[sample.index], "width": sample.width,
                                            "height": sample.height, "camera": sample.camera, "backdrop": sample.backdrop,
@@ -211,7 +232,7 @@ def generate_dataset(out: str | Path, job: SynthJob, *, workers: int | None = No
 def _describe(job: SynthJob) -> dict:
     pole = job.config.pole
     return {"seed": job.seed, "images": job.images, "width": job.width, "height": job.height, "hfov_deg": job.hfov_deg,
-            "focal_px": round(job.camera.focal_px, 3), "calibration_shots": job.calibration_shots,
+            "focal_px": round(job.camera.focal_px, 3), "calibration_shots": job.calibration_shots, "walk": job.walk,
             "backgrounds": len(job.backgrounds), "backdrop_share": job.backdrop_share,
             "pole": {"diameter_m": pole.diameter, "band_height_m": pole.band_height, "base_height_m": pole.base_height}}
 

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -15,7 +16,7 @@ from detector.synth.scene import Scene, goal_posts, venue
 from naoslam.camera import CameraPose, PinholeCamera
 from naoslam.field import FieldGeometry
 from naoslam.landmarks import PoleGeometry
-from naoslam.sim import Walk
+from naoslam.sim import SimConfig, Walk, simulate
 
 #: The head looks slightly down while walking, as the thesis's Nao did.
 WALK_PITCH_DEG = 8.0
@@ -29,6 +30,22 @@ def _swaying_pose(walk: Walk, step: int, rng: np.random.Generator) -> CameraPose
     x, y, theta = walk.steps[step].true_pose
     return CameraPose(x, y, CAMERA_HEIGHT_M + rng.normal(0, 0.005), theta,
                       math.radians(WALK_PITCH_DEG + rng.normal(0, 1.0)), math.radians(rng.normal(0, 1.5)))
+
+
+@lru_cache(maxsize=4)
+def simulated_walk(path: str, seed: int) -> Walk:
+    """The measurement-level walk ``poles slam --sim PATH --seed SEED`` runs (default settings), made once per process."""
+    return simulate(SimConfig(path=path, seed=seed))
+
+
+def walk_frames(path: str, seed: int) -> int:
+    """How many frames the walk :func:`simulated_walk` gives takes."""
+    return len(frame_steps(simulated_walk(path, seed)))
+
+
+def frame_steps(walk: Walk) -> list[int]:
+    """Indices of the walk's steps that take a frame."""
+    return [i for i, s in enumerate(walk.steps) if s.measurements is not None]
 
 
 def walk_scene(walk: Walk, step: int, seed: int, camera: PinholeCamera) -> Scene:
@@ -56,12 +73,11 @@ def _render(args: tuple[Walk, int, int, PinholeCamera]) -> np.ndarray:
 def render_walk(walk: Walk, seed: int = 0, camera: PinholeCamera = PinholeCamera(), workers: int | None = None,
                 progress: bool = True) -> list[np.ndarray]:
     """BGR frames at every step of the walk that has a frame (where the measurement-level sim has sightings)."""
-    steps = [i for i, s in enumerate(walk.steps) if s.measurements is not None]
+    steps = frame_steps(walk)
     frames = ordered_map(_render, [(walk, i, seed, camera) for i in steps], workers or default_workers(len(steps)))
     return list(tqdm(frames, total=len(steps), desc="rendering the walk", unit="frame", disable=not progress))
 
 
 def walk_camera_poses(walk: Walk, seed: int = 0) -> list[CameraPose]:
     """The camera pose of every frame :func:`render_walk` renders (what the robot's joint angles would give)."""
-    return [_swaying_pose(walk, i, np.random.default_rng([seed, i]))
-            for i, s in enumerate(walk.steps) if s.measurements is not None]
+    return [_swaying_pose(walk, i, np.random.default_rng([seed, i])) for i in frame_steps(walk)]
