@@ -39,6 +39,9 @@ POLE_TRAIN = --model yolov8n-seg --imgsz 640 --batch 64 --workers 14 --patience 
 POLE_SYNTH = --backgrounds $(BACKGROUNDS) --backdrop-share 0.75
 # Stage 5's run: its best.pt is what ships.
 FINAL = runs/pole-model-5
+# Rendered walks whose frames measure a walking robot's range noise (not the seeds README's SLAM figures use).
+WALKS = square circle figure8
+WALK_SEEDS = 10 11 12
 # Chained time-capped runs, each fine-tuned from the one before's last.pt (the GPU lease ran commands of at most
 # 10 minutes): $(1) data, $(2) first weights, $(3) run folder prefix, $(4) hours of each run, $(5) seed.
 chain = w=$(2); i=0; for h in $(4); do i=$$((i+1)); \
@@ -72,8 +75,12 @@ pole-model: $(STAMP)
 	$(BIN)/poles synth --out runs/pole-calib --images 135 --seed 5 --calibration-shots
 	$(BIN)/poles export --weights $(FINAL)/weights/best.pt --out $(FINAL)/poles-yolov8n-seg.onnx \
 		--data runs/pole-tune --int8 --dynamic --force
+	# The noise the filter is told: what the model's masks show in the frames of nine rendered walks.
+	for walk in $(WALKS); do for seed in $(WALK_SEEDS); do \
+		$(BIN)/poles synth --out runs/walknoise/$$walk-$$seed --walk $$walk --seed $$seed --force || exit 1; done; done
 	$(BIN)/poles calibrate --data runs/pole-calib --out $(FINAL)/calibration.json \
-		--model $(FINAL)/poles-yolov8n-seg.onnx --force
+		--model $(FINAL)/poles-yolov8n-seg.onnx --force \
+		$(foreach walk,$(WALKS),$(foreach seed,$(WALK_SEEDS),--noise-data runs/walknoise/$(walk)-$(seed)))
 	$(BIN)/poles evaluate --model $(FINAL)/poles-yolov8n-seg.onnx --data runs/pole-tune-all --split valid --conf 0.5 \
 		--calibration $(FINAL)/calibration.json --out $(FINAL)/tune
 	$(BIN)/python -m export.ship --weights $(FINAL)/weights/best.pt --onnx $(FINAL)/poles-yolov8n-seg.onnx \

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration.fit import calibrate
+from calibration.fit import WALK_RELATIVE_STD, calibrate
 from calibration.samples import SizeSample, as_arrays, collect_samples
 from naoslam.atomic import write_json
 from naoslam.measurement import RangeCalibration
@@ -33,7 +33,8 @@ def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv:
     calibration, report = calibrate(samples, walk_samples=walk)
     report["source"] = f"masks of {model}" if model else "label masks"
     report["noise_source"] = (", ".join(str(folder) for folder in noise_data) if noise_data
-                              else "the default walk floor (WALK_RELATIVE_STD)")
+                              else "rendered walks with the shipped model (the default; --noise-data measures "
+                                   "your own)")
     result = {"calibration": calibration.to_dict(), "report": report}
     if embed:
         embed_calibration(embed, calibration)
@@ -116,10 +117,11 @@ def print_calibration(result: dict) -> None:
     console = Console()
     console.print(laws)
     walk = {key: report[key]["walk"] for key in ("width", "height") if "walk" in report[key]}
-    console.print("the filter is told the larger of each law's residual and a walking robot's noise: "
-                  + (", ".join(f"{key} {100 * w['relative_std']:.1f} % (median error {100 * w['median_log_error']:+.1f}"
-                               f" %, {w['sightings']} sightings)" for key, w in walk.items())
-                     + f" measured on {report['noise_source']}" if walk else report["noise_source"]))
+    floors = (", ".join(f"{key} {100 * w['relative_std']:.1f} % (median error {100 * w['median_log_error']:+.1f} %, "
+                        f"{w['sightings']} sightings)" for key, w in walk.items()) if walk
+              else ", ".join(f"{key} {100 * std:.1f} %" for key, std in WALK_RELATIVE_STD.items()))
+    console.print(f"the filter is told the larger of each law's residual and a walking robot's noise: {floors}, "
+                  f"measured on {report['noise_source']}")
     console.print(errors)
     console.print(f"upright width/height ratio {report['upright_ratio']:.3f}"
                   + (f"; bearing error {report['bearing_error_deg']['mean']:+.2f} +- "
