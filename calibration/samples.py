@@ -43,8 +43,9 @@ def collect_samples(data: Path, model: Path | None = None, truth_csv: Path | Non
     dataset = open_dataset(data, progress=progress)
     truth = load_truth(dataset, truth_csv)
     if not any(t and t.get("range_m") is not None for entries in truth.values() for t in entries):
-        raise ValueError(f"{data}: no landmark has a true range - add annotations.json (from `poles synth "
-                         "--calibration-shots`) or pass --truth image,class,range_m CSV")
+        raise ValueError(f"{data}: no landmark has a true range - add annotations.json (`poles synth "
+                         "--calibration-shots` and `--walk` write one) or, for --data, pass --truth image,class,range_m "
+                         "CSV")
     detector = LandmarkDetector(model, conf=conf) if model else None
     samples = []
     for sample in tqdm(dataset.samples, desc="measuring", unit="img", disable=not progress):

@@ -1,7 +1,9 @@
 """A process pool that is only started when there is more than one worker."""
 from __future__ import annotations
 
+import gc
 import multiprocessing as mp
+import multiprocessing.pool
 import os
 import signal
 from collections.abc import Callable, Iterable, Iterator
@@ -19,11 +21,29 @@ def ordered_map(function: Callable[[T], R], items: Iterable[T], workers: int, ch
     if workers <= 1:
         yield from map(function, items)
         return
-    pool = mp.get_context("spawn" if os.name == "nt" else "fork").Pool(workers, initializer=_plain_signals)
+    pool = _pool(workers)
     try:
         yield from pool.imap(function, items, chunksize=chunksize)
     finally:
         pool.terminate()
+
+
+def _pool(workers: int) -> mp.pool.Pool:
+    """Worker processes, forked where the system can.
+
+    A forked worker must never run the destructor of an onnxruntime session: it waits for the session's thread-pool
+    threads, which were not forked, forever. A session the parent left in a reference cycle is freed by whichever
+    process's garbage collector runs next, so the parent collects its garbage first and its workers inherit the rest
+    frozen (``gc.freeze``: outside every collection they make).
+    """
+    if os.name == "nt":
+        return mp.get_context("spawn").Pool(workers, initializer=_plain_signals)
+    gc.collect()
+    gc.freeze()
+    try:
+        return mp.get_context("fork").Pool(workers, initializer=_plain_signals)
+    finally:
+        gc.unfreeze()
 
 
 def _plain_signals() -> None:

@@ -97,6 +97,16 @@ def test_calibrate_measures_the_noise_on_a_rendered_walk(calibration_shots, tmp_
                                                                report["width"]["walk"]["relative_std"])
 
 
+def test_noise_data_without_true_ranges_is_refused_before_anything_is_written(calibration_shots, dataset_copy,
+                                                                            tmp_path, capsys):
+    (dataset_copy / "annotations.json").unlink()  # a plain Roboflow export: masks, no ranges
+    out = tmp_path / "calibration.json"
+    assert main(["calibrate", "--data", str(calibration_shots), "--noise-data", str(dataset_copy),
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"{dataset_copy}: no landmark has a true range" in err and "Traceback" not in err and not out.exists()
+
+
 @pytest.mark.parametrize("bearing_deg", [0.0, 12.0, -20.0, 28.0])
 def test_on_axis_size_undoes_the_pinhole_stretch_of_a_pole_to_the_side(bearing_deg):
     camera = PinholeCamera(640, 480, 56.3)

@@ -54,6 +54,7 @@ def test_demo_runs_every_stage_writes_the_report_and_resumes(tmp_path, monkeypat
     for heading in ("Stages and time taken", "Dataset and augmentation", "Training", "Export and agreement",
                     "Range calibration", "Evaluation on held-out frames", "EKF SLAM on a simulated walk"):
         assert heading in page
+    assert "A square walk of 8 seconds" in page  # the walk it ran
     assert len(re.findall(r'src="data:image/(?:png|jpeg);base64,', page)) >= 10
     assert "not produced" not in page.split("Evaluation on held-out frames")[0]
     assert page.count('alt="confusion matrix"') == 3  # one per front end

@@ -2,9 +2,13 @@
 from __future__ import annotations
 
 import signal
+import subprocess
+import sys
+import textwrap
 
 from detector.errors import run_command
 from detector.parallel import ordered_map
+from naoslam.shipped import shipped_path
 
 
 def _square(x: int) -> int:
@@ -32,3 +36,21 @@ def test_workers_do_not_inherit_the_commands_sigterm_handler():
 
     assert run_command("test", command) == 0
     assert seen == [True] * 8
+
+
+def test_a_forked_worker_never_destroys_an_onnxruntime_session_the_parent_left_to_the_collector():
+    """Destroying an onnxruntime session in a forked worker waits for thread-pool threads that were not forked:
+    forever. A session in a reference cycle is freed by the garbage collector, whenever it runs next; this once
+    hung `poles demo` when a rendering worker's first collection met the evaluation stage's sessions."""
+    code = textwrap.dedent(f"""
+        import gc, sys
+        import onnxruntime
+        from detector.parallel import ordered_map
+        gc.disable()  # keep the garbage until the pool forks, as a parent between collections would
+        cycle = [onnxruntime.InferenceSession({str(shipped_path(False))!r}, providers=["CPUExecutionProvider"])]
+        cycle.append(cycle)
+        del cycle
+        print(list(ordered_map(gc.collect, [2, 2], workers=2)))
+    """)
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr

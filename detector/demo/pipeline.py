@@ -257,7 +257,7 @@ def _slam(folder: Path, model: Path, calibration_json: Path, budget: Budget, con
     calibration = load_calibration(calibration_json)
     sim = SimConfig(duration_s=budget.walk_seconds, seed=seed)
     chosen = SlamConfig()
-    summary: dict = {"backend": chosen.label}
+    summary: dict = {"backend": chosen.label, "walk_seconds": budget.walk_seconds}
     tables = {}
     front_ends = {"model": FrontEnd(str(model), calibration, conf),
                   "colour filter": FrontEnd("colour-filter", calibration, conf)}

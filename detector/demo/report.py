@@ -165,7 +165,8 @@ def _evaluation(evaluation: dict) -> str:
 
 
 def _slam(s: dict) -> str:
-    out = (f"<h2>EKF SLAM on a simulated walk</h2><p>A one-minute square walk on the SPL field with the six poles; "
+    length = f" of {s['walk_seconds']:.0f} seconds" if "walk_seconds" in s else ""  # (absent before 2026-11-24)
+    out = (f"<h2>EKF SLAM on a simulated walk</h2><p>A square walk{length} on the SPL field with the six poles; "
            f"frames ray-cast along it go through each front end into {html.escape(s['backend'])}.</p>")
     rows = []
     for name in ("model", "colour filter"):
