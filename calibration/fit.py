@@ -6,7 +6,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from calibration.samples import SizeSample, as_arrays
+from calibration.samples import SizeSample, as_arrays, measures_law
 from naoslam.camera import NAO_HFOV_DEG
 from naoslam.landmarks import PoleGeometry
 from naoslam.measurement import PowerLaw, RangeCalibration, bearing_of_column, fuse_with_foot
@@ -102,7 +102,7 @@ def _walk_noise(law: PowerLaw, size: str, walk: dict[str, np.ndarray] | None, re
     if walk is None:
         floor = WALK_RELATIVE_STD[size]
     else:
-        keep = np.ones_like(walk["partial"]) if size == "width" else ~walk["partial"]
+        keep = measures_law(walk, size)
         if keep.sum() < MIN_NOISE_SIGHTINGS:
             raise ValueError(f"--noise-data: {int(keep.sum())} sightings measure the {size} law, at least "
                              f"{MIN_NOISE_SIGHTINGS} needed - add frames of the walk (whole poles for the height law)")

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from calibration.fit import WALK_RELATIVE_STD, calibrate
-from calibration.samples import SizeSample, as_arrays, collect_samples
+from calibration.samples import SizeSample, as_arrays, collect_samples, measures_law
 from naoslam.atomic import write_json
 from naoslam.measurement import RangeCalibration
 
@@ -40,7 +40,7 @@ def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv:
         embed_calibration(embed, calibration)
     write_json(out, result)
     if plot:
-        plot_fit(samples, calibration, plot)
+        plot_fit(samples, calibration, plot, walk)
     return result
 
 
@@ -57,16 +57,23 @@ def embed_calibration(model: Path, calibration: RangeCalibration) -> Path:
     return add_metadata(model, calibration=calibration.to_dict())
 
 
-def plot_fit(samples: list[SizeSample], calibration: RangeCalibration, png: Path) -> Path:
-    """Range against width and height (log-log) with the fitted laws and the thesis's."""
+def plot_fit(samples: list[SizeSample], calibration: RangeCalibration, png: Path,
+             walk_samples: list[SizeSample] | None = None) -> Path:
+    """Range against width and height (log-log) with the fitted laws and the thesis's, behind them the walk's
+    sightings (``--noise-data``) whose spread the filter is told."""
     from detector.figures import plt, save_figure
 
-    columns = as_arrays(samples, calibration.reference_width_px,
-                        calibration.hfov_deg if calibration.off_axis_corrected else None)
+    hfov = calibration.hfov_deg if calibration.off_axis_corrected else None
+    columns = as_arrays(samples, calibration.reference_width_px, hfov)
+    walk = as_arrays(walk_samples, calibration.reference_width_px, hfov) if walk_samples else None
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
     for ax, key, law, thesis in ((axes[0], "width", calibration.width_law, THESIS_WIDTH_LAW),
                                  (axes[1], "height", calibration.height_law, THESIS_HEIGHT_LAW)):
         px = columns[key]
+        if walk is not None:
+            shown = measures_law(walk, key)
+            ax.scatter(walk[key][shown], walk["range"][shown], s=4, color="0.75", zorder=0,
+                       label=f"walk sightings (told {100 * law.relative_std:.1f} %)")
         ax.scatter(px[~columns["partial"]], columns["range"][~columns["partial"]], s=12, label="whole pole")
         if columns["partial"].any():
             ax.scatter(px[columns["partial"]], columns["range"][columns["partial"]], s=12, marker="x",

@@ -125,3 +125,9 @@ def as_arrays(samples: list[SizeSample], reference_width: int,
     scale = np.array([reference_width / s.image_width for s in samples])
     return {"range": np.array([s.range_m for s in samples]), "width": np.array([w for w, _ in sizes]) * scale,
             "height": np.array([h for _, h in sizes]) * scale, "partial": np.array([s.partial for s in samples])}
+
+
+def measures_law(columns: dict[str, np.ndarray], size: str) -> np.ndarray:
+    """Which rows of :func:`as_arrays` measure the ``size`` law: every pole for width, whole poles for height (a pole
+    cut by the border is not its own height)."""
+    return np.ones_like(columns["partial"]) if size == "width" else ~columns["partial"]

@@ -87,8 +87,10 @@ def test_a_walks_sightings_set_the_noise_the_filter_is_told(calibration_shots):
 
 def test_calibrate_measures_the_noise_on_a_rendered_walk(calibration_shots, tmp_path, capsys):
     walk = generate_dataset(tmp_path / "walk", SynthJob(30, seed=1, walk="square"), workers=2, progress=False)
-    out = tmp_path / "calibration.json"
-    assert main(["calibrate", "--data", str(calibration_shots), "--noise-data", str(walk), "--out", str(out)]) == 0
+    out, plot = tmp_path / "calibration.json", tmp_path / "fit.png"
+    assert main(["calibrate", "--data", str(calibration_shots), "--noise-data", str(walk), "--out", str(out),
+                 "--plot", str(plot)]) == 0
+    assert cv2.imread(str(plot)) is not None
     report = json.loads(out.read_text())["report"]
     labelled = sum(len(i["landmarks"]) for i in json.loads((walk / "annotations.json").read_text())["images"].values())
     assert report["width"]["walk"]["sightings"] == labelled >= 20
