@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from calibration.fit import WALK_RELATIVE_STD, calibrate
-from calibration.samples import SizeSample, as_arrays, collect_samples, measures_law
+from calibration.samples import SizeSample, as_arrays, measure_samples, measures_law, open_ranged
 from naoslam.atomic import write_json
 from naoslam.measurement import RangeCalibration
 
@@ -28,8 +28,10 @@ def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv:
         from export.onnx_export import read_info
 
         read_info(embed)  # refuse a model that cannot take the calibration before anything is written
-    samples = collect_samples(data, model, truth_csv)
-    walk = [s for folder in noise_data for s in collect_samples(folder, model)] if noise_data else None
+    ranged = open_ranged(data, truth_csv)
+    walks = [open_ranged(folder) for folder in noise_data]  # every input checked before any is measured
+    samples = measure_samples(ranged, model)
+    walk = [s for w in walks for s in measure_samples(w, model)] if walks else None
     calibration, report = calibrate(samples, walk_samples=walk)
     report["source"] = f"masks of {model}" if model else "label masks"
     report["noise_source"] = (", ".join(str(folder) for folder in noise_data) if noise_data

@@ -10,7 +10,8 @@ from tqdm import tqdm
 
 from detector.datasets.intake import open_dataset
 from detector.datasets.polygons import polygon_to_mask
-from detector.datasets.truth import load_truth
+from detector.datasets.model import Dataset
+from detector.datasets.truth import ImageTruth, load_truth
 from detector.matching import mask_iou
 from naoslam.camera import NAO_HFOV_DEG, CameraPose, PinholeCamera
 from naoslam.detector import LandmarkDetector, mask_centre_column, rotated_box_of_mask
@@ -36,16 +37,37 @@ class SizeSample:
     foot_range_std: float | None = None
 
 
-def collect_samples(data: Path, model: Path | None = None, truth_csv: Path | None = None,
-                    conf: float = 0.25, progress: bool = True, hfov_deg: float = NAO_HFOV_DEG) -> list[SizeSample]:
-    """Measure every pole with a true range: its labelled mask, or the model's best same-class detection (and its
-    foot-row range where the image's camera pose is known)."""
+@dataclass(frozen=True)
+class RangedDataset:
+    """A checked dataset and the true range of its poles (``truth.ImageTruth`` per image)."""
+
+    dataset: Dataset
+    truth: dict[str, ImageTruth]
+
+
+def open_ranged(data: Path, truth_csv: Path | None = None, progress: bool = True) -> RangedDataset:
+    """The dataset at ``data`` with its poles' true ranges (annotations.json or ``truth_csv``); refused when it is
+    not a readable dataset or no pole has a range."""
     dataset = open_dataset(data, progress=progress)
     truth = load_truth(dataset, truth_csv)
     if not any(t and t.get("range_m") is not None for entries in truth.values() for t in entries):
         raise ValueError(f"{data}: no landmark has a true range - add annotations.json (`poles synth "
                          "--calibration-shots` and `--walk` write one) or, for --data, pass --truth image,class,range_m "
                          "CSV")
+    return RangedDataset(dataset, truth)
+
+
+def collect_samples(data: Path, model: Path | None = None, truth_csv: Path | None = None,
+                    conf: float = 0.25, progress: bool = True, hfov_deg: float = NAO_HFOV_DEG) -> list[SizeSample]:
+    """Measure every pole of the dataset at ``data`` with a true range (:func:`measure_samples`)."""
+    return measure_samples(open_ranged(data, truth_csv, progress), model, conf, progress, hfov_deg)
+
+
+def measure_samples(ranged: RangedDataset, model: Path | None = None, conf: float = 0.25, progress: bool = True,
+                    hfov_deg: float = NAO_HFOV_DEG) -> list[SizeSample]:
+    """Measure every pole with a true range: its labelled mask, or the model's best same-class detection (and its
+    foot-row range where the image's camera pose is known)."""
+    dataset, truth = ranged.dataset, ranged.truth
     detector = LandmarkDetector(model, conf=conf) if model else None
     samples = []
     for sample in tqdm(dataset.samples, desc="measuring", unit="img", disable=not progress):
@@ -77,7 +99,7 @@ def collect_samples(data: Path, model: Path | None = None, truth_csv: Path | Non
                                       column, width, bool(partial), entry.get("bearing_rad"),
                                       entry.get("band_centre_distance_px"), *foot))
     if not samples:
-        raise ValueError(f"{data}: no pole with a true range could be measured"
+        raise ValueError(f"{dataset.root}: no pole with a true range could be measured"
                          + (f" - {model} found none of them" if model else ""))
     return samples
 

@@ -99,7 +99,7 @@ def test_calibrate_measures_the_noise_on_a_rendered_walk(calibration_shots, tmp_
                                                                report["width"]["walk"]["relative_std"])
 
 
-def test_noise_data_without_true_ranges_is_refused_before_anything_is_written(calibration_shots, dataset_copy,
+def test_noise_data_without_true_ranges_is_refused_before_anything_is_measured(calibration_shots, dataset_copy,
                                                                             tmp_path, capsys):
     (dataset_copy / "annotations.json").unlink()  # a plain Roboflow export: masks, no ranges
     out = tmp_path / "calibration.json"
@@ -107,6 +107,7 @@ def test_noise_data_without_true_ranges_is_refused_before_anything_is_written(ca
                  "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert f"{dataset_copy}: no landmark has a true range" in err and "Traceback" not in err and not out.exists()
+    assert "measuring" not in err  # refused before the shots were measured
 
 
 @pytest.mark.parametrize("bearing_deg", [0.0, 12.0, -20.0, 28.0])
