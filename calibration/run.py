@@ -21,7 +21,8 @@ def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv:
                     plot: Path | None = None, embed: Path | None = None, force: bool = False,
                     noise_data: Sequence[Path] = ()) -> dict:
     """Fit from ``data`` and write ``out`` (calibration + report); returns what was written. ``noise_data``: frames
-    of a walk with true ranges (e.g. ``poles synth --walk``), measured the same way, set the noise the filter is told."""
+    of a walk with true ranges (e.g. ``poles synth --walk``), measured the same way, set the noise the filter is
+    told."""
     if Path(out).exists() and not force:
         raise FileExistsError(f"{out} exists - pick another --out or add --force")
     if embed:

@@ -76,7 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="folder of real robot-camera frames without poles: draw the poles over them")
     synth.add_argument("--backdrop-share", type=float, default=1.0,
                        help="with --backgrounds, the fraction of frames drawn over them (default 1; the rest ray-cast)")
-    synth.add_argument("--nominal-paint-share", type=float, default=SceneConfig.nominal_paint_share,
+    synth.add_argument("--nominal-paint-share", type=float,
                        help="share of frames whose poles keep the nominal paint; the rest vary hue, saturation and "
                             f"value per band (default {SceneConfig.nominal_paint_share})")
     synth.add_argument("--preview", action="store_true", help="also write preview.png, a contact sheet with labels drawn")
@@ -328,10 +328,13 @@ def _synth(args: argparse.Namespace) -> int:
         walk_frames(args.walk, args.seed) if args.walk else DEFAULT_SYNTH_IMAGES)
     if images < 1:
         raise ValueError("--images must be at least 1")
+    if args.walk and args.nominal_paint_share is not None:
+        raise ValueError("--walk paints its poles as `poles slam` renders them: leave out --nominal-paint-share")
+    paint = {} if args.nominal_paint_share is None else {"nominal_paint_share": args.nominal_paint_share}
+    config = SceneConfig(**paint)
     backgrounds = scan_backdrops(args.backgrounds) if args.backgrounds is not None else ()
     job = SynthJob(images, args.seed, *args.size, hfov_deg=args.hfov, calibration_shots=args.calibration_shots,
-                   backgrounds=backgrounds, backdrop_share=args.backdrop_share, walk=args.walk,
-                   config=SceneConfig(nominal_paint_share=args.nominal_paint_share))
+                   backgrounds=backgrounds, backdrop_share=args.backdrop_share, walk=args.walk, config=config)
     out = generate_dataset(args.out, job, workers=args.workers, preview=args.preview, force=args.force)
     print(f"wrote {images} images to {out}")
     return 0

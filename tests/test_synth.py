@@ -109,6 +109,8 @@ def test_a_walk_refuses_more_frames_than_it_takes_and_other_scene_sources(tmp_pa
     assert f"takes {frames} frames" in capsys.readouterr().err and not (tmp_path / "w").exists()
     assert main(["synth", "--walk", "square", "--calibration-shots", "--out", str(tmp_path / "w")]) == 2
     assert "leave out --calibration-shots" in capsys.readouterr().err
+    assert main(["synth", "--walk", "square", "--nominal-paint-share", "0", "--out", str(tmp_path / "w")]) == 2
+    assert "leave out --nominal-paint-share" in capsys.readouterr().err
 
 
 def test_cli_synth_check_and_preview(tmp_path, capsys):
