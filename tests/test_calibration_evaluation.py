@@ -110,6 +110,19 @@ def test_noise_data_without_true_ranges_is_refused_before_anything_is_measured(c
     assert "measuring" not in err  # refused before the shots were measured
 
 
+def test_the_minimal_annotations_json_a_team_writes_gives_the_same_sizes_and_ranges(synth_dataset, dataset_copy):
+    """README, "Range calibration": each image's landmarks as {cls, range_m}, in its label file's order."""
+    full = json.loads((synth_dataset / "annotations.json").read_text())["images"]
+    minimal = {"images": {name: {"landmarks": [{"cls": lm["cls"], "range_m": lm["range_m"]}
+                                               for lm in entry["landmarks"]]} for name, entry in full.items()}}
+    (dataset_copy / "annotations.json").write_text(json.dumps(minimal))
+    expected = collect_samples(synth_dataset, progress=False)
+    written = collect_samples(dataset_copy, progress=False)
+    assert len(written) == len(expected) >= 10
+    assert [(s.image, s.cls, s.range_m, s.width_px, s.height_px) for s in written] == \
+        [(s.image, s.cls, s.range_m, s.width_px, s.height_px) for s in expected]
+
+
 @pytest.mark.parametrize("bearing_deg", [0.0, 12.0, -20.0, 28.0])
 def test_on_axis_size_undoes_the_pinhole_stretch_of_a_pole_to_the_side(bearing_deg):
     camera = PinholeCamera(640, 480, 56.3)
