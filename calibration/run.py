@@ -8,8 +8,9 @@ from pathlib import Path
 import numpy as np
 
 from calibration.fit import WALK_RELATIVE_STD, calibrate
-from calibration.samples import SizeSample, as_arrays, measure_samples, measures_law, open_ranged
+from calibration.samples import MEASURE_CONF, SizeSample, as_arrays, measure_samples, measures_law, open_ranged
 from naoslam.atomic import write_json
+from naoslam.detector import LandmarkDetector
 from naoslam.measurement import RangeCalibration
 
 #: The 2024 thesis's laws at 640x480, drawn for comparison.
@@ -31,8 +32,9 @@ def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv:
         read_info(embed)  # refuse a model that cannot take the calibration before anything is written
     ranged = open_ranged(data, truth_csv)
     walks = [open_ranged(folder) for folder in noise_data]  # every input checked before any is measured
-    samples = measure_samples(ranged, model)
-    walk = [s for w in walks for s in measure_samples(w, model)] if walks else None
+    detector = LandmarkDetector(model, conf=MEASURE_CONF) if model else None
+    samples = measure_samples(ranged, detector)
+    walk = [s for w in walks for s in measure_samples(w, detector)] if walks else None
     calibration, report = calibrate(samples, walk_samples=walk)
     report["source"] = f"masks of {model}" if model else "label masks"
     report["noise_source"] = (", ".join(str(folder) for folder in noise_data) if noise_data

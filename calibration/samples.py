@@ -52,23 +52,29 @@ def open_ranged(data: Path, truth_csv: Path | None = None, progress: bool = True
     truth = load_truth(dataset, truth_csv)
     if not any(t and t.get("range_m") is not None for entries in truth.values() for t in entries):
         raise ValueError(f"{data}: no landmark has a true range - add annotations.json (`poles synth "
-                         "--calibration-shots` and `--walk` write one) or, for --data, pass --truth image,class,range_m "
-                         "CSV")
+                         "--calibration-shots` and `--walk` write one) or, for --data, pass --truth "
+                         "image,class,range_m CSV")
     return RangedDataset(dataset, truth)
 
 
+#: Confidence a model's detection needs to measure a pole (low: the labelled pole picks its detection by mask IoU).
+MEASURE_CONF = 0.25
+
+
 def collect_samples(data: Path, model: Path | None = None, truth_csv: Path | None = None,
-                    conf: float = 0.25, progress: bool = True, hfov_deg: float = NAO_HFOV_DEG) -> list[SizeSample]:
-    """Measure every pole of the dataset at ``data`` with a true range (:func:`measure_samples`)."""
-    return measure_samples(open_ranged(data, truth_csv, progress), model, conf, progress, hfov_deg)
-
-
-def measure_samples(ranged: RangedDataset, model: Path | None = None, conf: float = 0.25, progress: bool = True,
+                    conf: float = MEASURE_CONF, progress: bool = True,
                     hfov_deg: float = NAO_HFOV_DEG) -> list[SizeSample]:
-    """Measure every pole with a true range: its labelled mask, or the model's best same-class detection (and its
-    foot-row range where the image's camera pose is known)."""
-    dataset, truth = ranged.dataset, ranged.truth
+    """Measure every pole of the dataset at ``data`` with a true range (:func:`measure_samples`), by ``model``'s
+    masks when given."""
     detector = LandmarkDetector(model, conf=conf) if model else None
+    return measure_samples(open_ranged(data, truth_csv, progress), detector, progress, hfov_deg)
+
+
+def measure_samples(ranged: RangedDataset, detector: LandmarkDetector | None = None, progress: bool = True,
+                    hfov_deg: float = NAO_HFOV_DEG) -> list[SizeSample]:
+    """Measure every pole with a true range: its labelled mask, or the ``detector``'s best same-class detection (and
+    its foot-row range where the image's camera pose is known)."""
+    dataset, truth = ranged.dataset, ranged.truth
     samples = []
     for sample in tqdm(dataset.samples, desc="measuring", unit="img", disable=not progress):
         entries = truth.get(sample.image.name)
@@ -100,7 +106,7 @@ def measure_samples(ranged: RangedDataset, model: Path | None = None, conf: floa
                                       entry.get("band_centre_distance_px"), *foot))
     if not samples:
         raise ValueError(f"{dataset.root}: no pole with a true range could be measured"
-                         + (f" - {model} found none of them" if model else ""))
+                         + (f" - {detector.path} found none of them" if detector else ""))
     return samples
 
 

@@ -322,10 +322,10 @@ def main(argv: list[str] | None = None) -> int:
 def _synth(args: argparse.Namespace) -> int:
     from detector.synth.backdrops import scan_backdrops
     from detector.synth.generate import DEFAULT_SYNTH_IMAGES, SynthJob, generate_dataset
-    from detector.synth.walk import walk_frames
+    from detector.synth.walk import walk_frame_steps
 
     images = args.images if args.images is not None else (
-        walk_frames(args.walk, args.seed) if args.walk else DEFAULT_SYNTH_IMAGES)
+        len(walk_frame_steps(args.walk, args.seed)) if args.walk else DEFAULT_SYNTH_IMAGES)
     if images < 1:
         raise ValueError("--images must be at least 1")
     if args.walk and args.nominal_paint_share is not None:

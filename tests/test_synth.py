@@ -19,7 +19,7 @@ from detector.datasets.polygons import mask_to_polygon, polygon_to_mask
 from detector.synth.generate import CALIBRATION_RANGES_M, MIN_LABEL_PIXELS, SynthJob, generate_dataset, render_one
 from detector.synth.render import render_scene
 from detector.synth.scene import sample_scene
-from detector.synth.walk import frame_steps, render_walk, simulated_walk, walk_camera_poses, walk_frames
+from detector.synth.walk import frame_steps, render_walk, simulated_walk, walk_camera_poses, walk_frame_steps
 from naoslam.camera import PinholeCamera
 
 REPO = Path(__file__).resolve().parents[1]
@@ -104,7 +104,7 @@ def test_a_walks_frames_are_the_frames_slam_sees_labelled_with_each_poles_true_r
 
 
 def test_a_walk_refuses_more_frames_than_it_takes_and_other_scene_sources(tmp_path, capsys):
-    frames = walk_frames("square", 0)
+    frames = len(walk_frame_steps("square", 0))
     assert main(["synth", "--walk", "square", "--images", str(frames + 1), "--out", str(tmp_path / "w")]) == 2
     assert f"takes {frames} frames" in capsys.readouterr().err and not (tmp_path / "w").exists()
     assert main(["synth", "--walk", "square", "--calibration-shots", "--out", str(tmp_path / "w")]) == 2

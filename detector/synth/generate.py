@@ -20,7 +20,7 @@ from detector.synth.readable import misread_bands
 from detector.synth.objects import repainted
 from detector.synth.render import MIN_BAND_PIXELS, MIN_BAND_SHARE, Frame, PoleTruth, render_scene
 from detector.synth.scene import BackdropShot, Scene, SceneConfig, calibration_scene, sample_scene
-from detector.synth.walk import frame_steps, simulated_walk, walk_frames, walk_scene
+from detector.synth.walk import simulated_walk, walk_frame_steps, walk_scene
 from naoslam.camera import PinholeCamera
 from naoslam.landmarks import CLASSES
 from naoslam.sim import PATHS
@@ -168,8 +168,8 @@ def _draw_scene(job: SynthJob, index: int, rng: np.random.Generator, backdrop_pa
         angle = CALIBRATION_ANGLES_DEG[(index // len(CALIBRATION_RANGES_M)) % len(CALIBRATION_ANGLES_DEG)]
         return calibration_scene(rng, camera, CLASSES[index % len(CLASSES)], range_m, angle, job.config)
     if job.walk:
-        walk = simulated_walk(job.walk, job.seed)
-        return walk_scene(walk, frame_steps(walk)[index], job.seed, camera)
+        return walk_scene(simulated_walk(job.walk, job.seed), walk_frame_steps(job.walk, job.seed)[index], job.seed,
+                          camera)
     return sample_scene(rng, camera, job.config)
 
 
@@ -203,9 +203,10 @@ def generate_dataset(out: str | Path, job: SynthJob, *, workers: int | None = No
     Calibration shots and a walk's frames all go to the ``test`` split; other frames are split 70/20/10
     (train/test/valid).
     """
-    if job.walk and job.images > walk_frames(job.walk, job.seed):
-        raise ValueError(f"--images {job.images}: the {job.walk} walk takes {walk_frames(job.walk, job.seed)} frames "
-                         "- ask for that many or fewer")
+    walk_length = len(walk_frame_steps(job.walk, job.seed)) if job.walk else None
+    if walk_length is not None and job.images > walk_length:
+        raise ValueError(f"--images {job.images}: the {job.walk} walk takes {walk_length} frames - ask for that many "
+                         "or fewer")
     kind = "calib" if job.calibration_shots else "walk" if job.walk else "synth"
     splits = ["test"] * job.images if kind != "synth" else split_names(job.images, job.seed)
     workers = workers or default_workers(job.images)

@@ -34,13 +34,15 @@ def _swaying_pose(walk: Walk, step: int, rng: np.random.Generator) -> CameraPose
 
 @lru_cache(maxsize=4)
 def simulated_walk(path: str, seed: int) -> Walk:
-    """The measurement-level walk ``poles slam --sim PATH --seed SEED`` runs (default settings), made once per process."""
+    """The measurement-level walk ``poles slam --sim PATH --seed SEED`` runs (default settings), made once per
+    process."""
     return simulate(SimConfig(path=path, seed=seed))
 
 
-def walk_frames(path: str, seed: int) -> int:
-    """How many frames the walk :func:`simulated_walk` gives takes."""
-    return len(frame_steps(simulated_walk(path, seed)))
+@lru_cache(maxsize=4)
+def walk_frame_steps(path: str, seed: int) -> tuple[int, ...]:
+    """The steps of :func:`simulated_walk`'s walk that take a frame, found once per process."""
+    return tuple(frame_steps(simulated_walk(path, seed)))
 
 
 def frame_steps(walk: Walk) -> list[int]:
