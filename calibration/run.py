@@ -100,7 +100,7 @@ def plot_fit(samples: list[SizeSample], calibration: RangeCalibration, png: Path
 
 def print_calibration(result: dict) -> None:
     """The laws and the per-distance errors as tables."""
-    from rich.console import Console
+    from detector.console import make_console
     from rich.table import Table
 
     report = result["report"]
@@ -126,7 +126,7 @@ def print_calibration(result: dict) -> None:
                        *(f"{row[m]:.1f} %" for m in ("width", "height", "rule", "fused")),
                        f"{row['foot']:.1f} % ({row['foot_samples']})" if "foot" in row else "-",
                        f"{row['fused+foot']:.1f} %" if "fused+foot" in row else "-")
-    console = Console()
+    console = make_console()
     console.print(laws)
     walk = {key: report[key]["walk"] for key in ("width", "height") if "walk" in report[key]}
     floors = (", ".join(f"{key} {100 * w['relative_std']:.1f} % (median error {100 * w['median_log_error']:+.1f} %, "

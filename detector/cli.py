@@ -98,7 +98,7 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("--force", action="store_true")
 
     augment = sub.add_parser("augment", help="add N augmented copies of every training image (labels kept exact)")
-    augment.add_argument("--data", type=Path, required=True, help="input dataset (never written)")
+    _add_dataset_argument(augment, "input dataset (never written)")
     augment.add_argument("--out", type=Path, required=True, help="output dataset folder")
     augment.add_argument("--copies", type=int, default=7, help="copies per training image (thesis: 7)")
     augment.add_argument("--seed", type=int, default=0)
@@ -113,7 +113,7 @@ def build_parser() -> argparse.ArgumentParser:
     augment.add_argument("--force", action="store_true")
 
     split = sub.add_parser("split", help="re-split a dataset, stratified so every class reaches every split")
-    split.add_argument("--data", type=Path, required=True)
+    _add_dataset_argument(split, "dataset folder to re-split (never written)")
     split.add_argument("--out", type=Path, required=True)
     split.add_argument("--ratios", type=float, nargs=3, default=(0.7, 0.2, 0.1), metavar=("TRAIN", "TEST", "VALID"),
                        help="fractions for train, test and valid (thesis: 0.7 0.2 0.1)")
@@ -121,7 +121,7 @@ def build_parser() -> argparse.ArgumentParser:
     split.add_argument("--force", action="store_true")
 
     train = sub.add_parser("train", help="train a YOLOv8 segmentation model on the CPU (offline, every core)")
-    train.add_argument("--data", type=Path, required=True, help="dataset folder with data.yaml")
+    _add_dataset_argument(train, "dataset folder with data.yaml")
     train.add_argument("--out", type=Path, required=True, help="run folder (weights/best.pt, results.csv, curves)")
     train.add_argument("--model", help="yolov8n-seg (default), yolov8s-seg or yolov8m-seg")
     train.add_argument("--weights", help="checkpoint to fine-tune from (default: the shipped pole model for "
@@ -163,8 +163,7 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("--force", action="store_true", help="replace existing output files")
 
     calib = sub.add_parser("calibrate", help="fit range = a * px^b from poles of known distance")
-    calib.add_argument("--data", type=Path, required=True,
-                       help="dataset whose annotations.json (or --truth CSV) gives each pole's true range")
+    _add_dataset_argument(calib, "dataset whose annotations.json (or --truth CSV) gives each pole's true range")
     calib.add_argument("--out", type=Path, required=True, help="calibration.json to write")
     source = calib.add_mutually_exclusive_group()
     source.add_argument("--model", type=Path, help="measure the masks this ONNX model finds")
@@ -182,7 +181,7 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--model", action="append",
                           help="a .pt checkpoint, an .onnx model, `shipped`, `shipped-int8` or `colour-filter`; "
                                "repeat to compare several (default: the shipped model)")
-    evaluate.add_argument("--data", type=Path, required=True)
+    _add_dataset_argument(evaluate, "held-out frames with labels (dataset folder or COCO export)")
     evaluate.add_argument("--split", default="test", help="split to evaluate (default test)")
     evaluate.add_argument("--conf", type=float,
                           help="confidence threshold for the counts (default: the model's own, else 0.5)")

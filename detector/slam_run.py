@@ -262,7 +262,7 @@ def _summary(name: str, runs: list[dict]) -> dict:
 
 def print_comparison(rows: list[dict], title: str) -> None:
     """Print one table row per back end: errors against the truth, missing and phantom landmarks, consistency."""
-    from rich.console import Console
+    from detector.console import make_console
     from rich.table import Table
 
     table = Table(title=title)
@@ -277,7 +277,7 @@ def print_comparison(rows: list[dict], title: str) -> None:
                       f"{row['nees']:.1f}" if "nees" in row else "-",
                       f"{band[0]:.2f}-{band[1]:.2f}" if band else "-",
                       f"{row['nis']:.2f}" if "nis" in row else "-")
-    Console().print(table)
+    make_console().print(table)
 
 
 def plot_map(result: SlamResult, png: Path, title: str) -> Path:

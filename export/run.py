@@ -130,7 +130,7 @@ def _recommend(report: dict) -> str:
 
 def print_report(report: dict) -> None:
     """The agreement and speed figures as a table, one column per comparison."""
-    from rich.console import Console
+    from detector.console import make_console
     from rich.table import Table
 
     comparisons = [(label, report[key], report[problems]) for key, problems, label in (
@@ -151,7 +151,7 @@ def print_report(report: dict) -> None:
     for name, cell in rows.items():
         table.add_row(name, *(cell(a) for _, a, _ in comparisons))
     table.add_row("verdict", *("; ".join(problems) or "agrees" for _, _, problems in comparisons))
-    console = Console()
+    console = make_console()
     console.print(table)
     latency = ", ".join(f"{k} {v:.1f} ms" for k, v in report["latency_ms"].items())
     console.print(f"front end per frame: {latency}; use {report['recommended'].upper()}; wrote {report['onnx']}"

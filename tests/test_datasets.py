@@ -159,6 +159,23 @@ def test_check_and_convert_take_the_dataset_as_data_or_as_the_option_every_comma
     assert main(["convert", "--data", str(dataset_copy), "--out", str(tmp_path / "converted")]) == 0
     assert (tmp_path / "converted" / "data.yaml").is_file()
 
+
+@pytest.mark.parametrize("command", ["check", "convert", "augment", "split", "train", "calibrate", "evaluate"])
+def test_every_command_that_reads_a_dataset_takes_it_as_data_or_as_the_option(command):
+    from detector.cli import _one_dataset, build_parser
+
+    out = [] if command == "check" else ["--out", "result"]
+    positional = build_parser().parse_args([command, "export", *out])
+    option = build_parser().parse_args([command, "--data", "export", *out])
+    assert _one_dataset(positional) == _one_dataset(option) == Path("export")
+
+
+def test_a_logged_check_keeps_its_table_headers_whole(dataset_copy, capsys, monkeypatch):
+    monkeypatch.delenv("COLUMNS", raising=False)  # into a pipe, as in a CI log: rich alone would cut at 80 columns
+    assert main(["check", str(dataset_copy)]) == 0
+    header = next(line for line in capsys.readouterr().out.splitlines() if "split" in line)
+    assert all(word in header for word in ("images", "empty", "box-only", "unreadable", "poles", "image sizes"))
+
 def test_require_clean_lists_problems(dataset_copy):
     label = _first_labelled(dataset_copy)
     _append_line(label, "0 0.1 0.1")

@@ -12,6 +12,7 @@ from rich.console import Console
 from rich.table import Table
 from tqdm import tqdm
 
+from detector.console import make_console
 from detector.datasets.io import DatasetWriter, load_dataset
 from detector.datasets.labels import BOX_ONLY
 from detector.datasets.model import SPLITS, Dataset, DatasetError, Problem, Sample
@@ -80,7 +81,7 @@ def print_report(report: CheckReport, console: Console | None = None, show_notes
                  full_list: Path | None = None) -> Path | None:
     """Print the per-split table and a summary per kind of problem (count and first examples); the whole list is
     written to ``full_list`` (atomically) when the summary leaves some out. Returns that file, if written."""
-    console = console or Console()
+    console = console or make_console()
     table = Table(title=f"dataset {report.dataset.root}")
     for column in ("split", "images", "empty", "box-only", "unreadable", *CLASSES, "poles", "image sizes"):
         table.add_column(column, justify="left" if column in ("split", "image sizes") else "right")

@@ -9,13 +9,13 @@ import shutil
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from rich.console import Console
 from rich.table import Table
 
+from detector.console import make_console
 from detector.demo.stages import StageFailed, StageLedger, file_fingerprint, stage_key
 from detector.starting_point import SHIPPED_WEIGHTS, starting_point
 
-console = Console()
+console = make_console()
 
 #: Fewest labelled validation poles a best-F1 threshold is chosen on. Below it the choice is noise (the v4 demo's 30
 #: frames, 39 poles, picked 0.20 where its test frames peak at 0.55), so the starting model's threshold stays.

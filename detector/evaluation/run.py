@@ -156,7 +156,7 @@ TABLE_ROWS = {
 
 def print_metrics(rows: list[dict]) -> None:
     """Side-by-side table of several evaluations, like the thesis's table 4.2."""
-    from rich.console import Console
+    from detector.console import make_console
     from rich.table import Table
 
     table = Table(title=f"held-out frames, conf {rows[0]['conf']}: TP = same class and mask IoU >= 0.5")
@@ -165,4 +165,4 @@ def print_metrics(rows: list[dict]) -> None:
         table.add_column(m["model"], justify="right")
     for label, cell in TABLE_ROWS.items():
         table.add_row(label, *(cell(m) for m in rows))
-    Console().print(table)
+    make_console().print(table)
