@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -20,26 +21,29 @@ THESIS_HEIGHT_LAW = (209.16, -0.965)
 
 def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv: Path | None = None,
                     plot: Path | None = None, embed: Path | None = None, force: bool = False,
-                    noise_data: Sequence[Path] = ()) -> dict:
+                    noise_data: Sequence[Path] = (), input_width: int | None = None) -> dict:
     """Fit from ``data`` and write ``out`` (calibration + report); returns what was written. ``noise_data``: frames
     of a walk with true ranges (e.g. ``poles synth --walk``), measured the same way, set the noise the filter is
-    told."""
+    told. ``input_width``: the ``model``'s input width on the robot (None: its own)."""
     if Path(out).exists() and not force:
         raise FileExistsError(f"{out} exists - pick another --out or add --force")
+    if input_width is not None and model is None:
+        raise ValueError("--imgsz is a model's input width: give --model (label masks have no input width)")
     if embed:
         from export.onnx_export import read_info
 
         read_info(embed)  # refuse a model that cannot take the calibration before anything is written
     ranged = open_ranged(data, truth_csv)
     walks = [open_ranged(folder) for folder in noise_data]  # every input checked before any is measured
-    detector = LandmarkDetector(model, conf=MEASURE_CONF) if model else None
+    detector = LandmarkDetector(model, conf=MEASURE_CONF, input_width=input_width) if model else None
     samples = measure_samples(ranged, detector)
     walk = [s for w in walks for s in measure_samples(w, detector)] if walks else None
     calibration, report = calibrate(samples, walk_samples=walk)
-    report["source"] = f"masks of {model}" if model else "label masks"
+    calibration = replace(calibration, input_width=detector.input_hw[1] if detector else None)
+    report["source"] = f"masks of {model} at {calibration.input_width} px input" if model else "label masks"
     report["noise_source"] = (", ".join(str(folder) for folder in noise_data) if noise_data
-                              else "rendered walks with the shipped model (the default; --noise-data measures "
-                                   "your own)")
+                              else "rendered walks with the shipped model at 640 px input (the default; "
+                                   "--noise-data measures your own)")
     result = {"calibration": calibration.to_dict(), "report": report}
     if embed:
         embed_calibration(embed, calibration)

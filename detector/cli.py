@@ -171,6 +171,9 @@ def build_parser() -> argparse.ArgumentParser:
     calib.add_argument("--truth", type=Path, help="CSV image,class,range_m instead of annotations.json")
     calib.add_argument("--plot", type=Path, help="write the fit plot (PNG)")
     calib.add_argument("--embed", type=Path, help="store the calibration in this ONNX model's metadata")
+    calib.add_argument("--imgsz", type=int, help="--model's input width, as the robot will run it (a model exported "
+                                                 "with --dynamic; default: its own): masks and so the laws change "
+                                                 "with it")
     calib.add_argument("--noise-data", type=Path, action="append", default=[], metavar="WALK",
                        help="frames of a walk with true ranges (`poles synth --walk`, or your own robot's with "
                             "annotations.json), measured like --data: the noise the filter is told (repeatable; "
@@ -187,7 +190,9 @@ def build_parser() -> argparse.ArgumentParser:
                           help="confidence threshold for the counts (default: the model's own, else 0.5)")
     evaluate.add_argument("--calibration", type=Path, help="calibration.json for range errors "
                                                            "(default: the one embedded in the ONNX model)")
-    evaluate.add_argument("--imgsz", type=int, default=640, help="inference size for .pt checkpoints")
+    evaluate.add_argument("--imgsz", type=int, help="network input width: .pt checkpoints (default 640) and ONNX "
+                                                    "models exported with --dynamic (default: the model's own), "
+                                                    "e.g. 320 for a slower CPU")
     evaluate.add_argument("--out", type=Path, required=True, help="folder for metrics.json, plots and FP/FN overlays")
 
     slam = sub.add_parser("slam", help="run an EKF SLAM back end on a simulated walk, a UTIAS log or a recording")
@@ -199,6 +204,8 @@ def build_parser() -> argparse.ArgumentParser:
     slam.add_argument("--frontend", help="model.onnx, `shipped` or colour-filter: the image-level simulation / "
                                          "recording (default for --frames: the shipped model)")
     slam.add_argument("--calibration", type=Path, help="calibration.json (default: the one in the model)")
+    slam.add_argument("--imgsz", type=int, help="the model's input width, for a model exported with --dynamic "
+                                                "(default: its own), e.g. 320 for a slower CPU")
     slam.add_argument("--conf", type=float,
                       help="detections used from this confidence (default: the model's own threshold, else 0.85)")
     slam.add_argument("--no-camera-pose", action="store_true",
@@ -270,7 +277,9 @@ def _slam(args: argparse.Namespace) -> int:
 
     calibration = load_calibration(args.calibration) if args.calibration else None
     frontend = args.frontend or ("shipped" if args.frames else None)
-    front_end = FrontEnd(frontend, calibration, args.conf) if frontend else None
+    if args.imgsz is not None and frontend in (None, "colour-filter"):
+        raise ValueError("--imgsz is a model's input width: give --frontend model.onnx or shipped")
+    front_end = FrontEnd(frontend, calibration, args.conf, args.imgsz) if frontend else None
     if args.sim:
         def make(seed: int):
             sim = SimConfig(path=args.sim, duration_s=args.duration or 90.0, seed=seed,
@@ -433,7 +442,7 @@ def _calibrate(args: argparse.Namespace) -> int:
     from calibration.run import print_calibration, run_calibration
 
     result = run_calibration(args.data, args.out, args.model, args.truth, args.plot, args.embed, args.force,
-                             args.noise_data)
+                             args.noise_data, args.imgsz)
     print_calibration(result)
     print(f"wrote {args.out}" + (f", {args.plot}" if args.plot else "") + (f"; embedded in {args.embed}" if args.embed else ""))
     return 0

@@ -44,12 +44,14 @@ BACKENDS = {
 class FrontEnd:
     """Turns frames into measurements: an ONNX model (``shipped``: naoslam's) or the colour filter, with a calibration.
 
-    ``min_confidence`` None uses the model's own operating threshold, else the thesis's 0.85.
+    ``min_confidence`` None uses the model's own operating threshold, else the thesis's 0.85. ``input_width`` runs
+    a ``--dynamic`` model at that input width (None: its own).
     """
 
     model: str
     calibration: RangeCalibration | None = None
     min_confidence: float | None = None
+    input_width: int | None = None
 
     def measurer(self):
         """A function (frame, camera_pose=None) -> measurements; with a pose, the ground-plane gate and the
@@ -58,10 +60,10 @@ class FrontEnd:
             return self._colour_filter()
         from naoslam.detector import LandmarkDetector
 
-        detector = LandmarkDetector(self.model)
+        detector = LandmarkDetector(self.model, input_width=self.input_width)
         min_confidence = self.min_confidence if self.min_confidence is not None else detector.stored_conf or THESIS_CONF
         detector.conf = min(detector.conf, min_confidence)
-        calibration = self.calibration or detector.calibration
+        calibration = detector.check_calibration(self.calibration) if self.calibration else detector.calibration
         if calibration is None:
             raise ValueError(f"{self.model}: no calibration in the model - run `poles calibrate --embed` "
                              "or pass --calibration")

@@ -22,7 +22,11 @@ def ship(weights: Path, onnx_fp32: Path, onnx_int8: Path, calibration_json: Path
     """Copy the three files into the package with calibration and threshold in both ONNX files; returns their paths."""
     if not 0.0 < operating_conf < 1.0:
         raise ValueError(f"--conf {operating_conf} must lie between 0 and 1")
-    calibration = load_calibration(calibration_json).to_dict()
+    calibration = load_calibration(calibration_json)
+    exported_width = read_info(onnx_fp32).input_hw[1]
+    if calibration.input_width not in (None, exported_width):
+        raise ValueError(f"{calibration_json}: measured at {calibration.input_width} px input, the model is exported "
+                         f"at {exported_width} px: calibrate it at its own size (leave out --imgsz)")
     SHIPPED_WEIGHTS.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(SHIPPED_WEIGHTS) as tmp:
         shutil.copyfile(weights, tmp)
@@ -31,7 +35,7 @@ def ship(weights: Path, onnx_fp32: Path, onnx_int8: Path, calibration_json: Path
         target = shipped_path(int8)
         target.parent.mkdir(parents=True, exist_ok=True)
         info = read_info(source)
-        extra = {**info.extra, "calibration": calibration, OPERATING_CONF_KEY: round(operating_conf, 3)}
+        extra = {**info.extra, "calibration": calibration.to_dict(), OPERATING_CONF_KEY: round(operating_conf, 3)}
         paths.append(write_metadata(source, replace(info, extra=extra), target))
     total = sum(p.stat().st_size for p in paths)
     if total > SIZE_BUDGET:

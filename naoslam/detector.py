@@ -22,7 +22,7 @@ from naoslam.ground import GroundView
 from naoslam.landmarks import CLASSES
 from naoslam.measurement import RangeCalibration
 from naoslam.model_info import ModelInfo
-from naoslam.shipped import OPERATING_CONF_KEY, resolve_model, shipped_model
+from naoslam.shipped import OPERATING_CONF_KEY, model_argument, resolve_model, shipped_model
 
 #: Ultralytics' letterbox fill value.
 PAD_VALUE = 114
@@ -145,11 +145,14 @@ class LandmarkDetector:
     ``model`` None runs the pole model shipped with naoslam. ``conf`` None uses the threshold stored in the model
     (``operating_conf``), else ``DEFAULT_CONF``. ``classes`` is the class list the caller expects (default the six
     pole codes); a model trained on other names is refused. Pass ``classes=None`` to accept any model.
+    ``input_width`` runs a model exported with ``--dynamic`` (the shipped ones are) at a smaller scale than it was
+    exported at, its height in proportion: fewer pixels for a slower CPU, and poles under about 16 px wide lost
+    (README, "Engines and the on-robot budget"). None keeps the model's own input size.
     """
 
     def __init__(self, model: Path | str | None = None, conf: float | None = None, iou: float = 0.7,
                  max_det: int = 300, classes: tuple[str, ...] | None = CLASSES, threads: int | None = None,
-                 engine: str = "onnxruntime"):
+                 engine: str = "onnxruntime", input_width: int | None = None):
         if engine not in ENGINES:
             raise ValueError(f"engine {engine!r} is not one of {', '.join(ENGINES)}")
         self.path = resolve_model(model) if model is not None else shipped_model()
@@ -159,6 +162,7 @@ class LandmarkDetector:
             raise ValueError(f"{self.path}: the model's classes {list(self.info.classes)} are not the pole classes "
                              f"{list(classes)} - train on a dataset whose data.yaml names them in this order")
         self._check_signature()
+        self.input_hw = self.info.input_hw if input_width is None else self._scaled_input_hw(input_width)
         self.conf = (self.stored_conf or DEFAULT_CONF) if conf is None else conf
         self.iou, self.max_det = iou, max_det
         self.input_name = self.session.get_inputs()[0].name
@@ -167,7 +171,7 @@ class LandmarkDetector:
         self._letterboxes: dict[tuple[int, int], Letterbox] = {}
         self.gate_rejections: list[tuple[Detection, str]] = []
         self.gate_rejected = 0
-        calibration = self.calibration
+        calibration = self.stored_calibration  # its camera's field of view holds at any input width
         #: The camera's horizontal field of view for the ground-plane gate: the calibration's, else the Nao's.
         self.hfov_deg = calibration.hfov_deg if calibration is not None else NAO_HFOV_DEG
 
@@ -182,14 +186,31 @@ class LandmarkDetector:
         return float(stored) if stored is not None else None
 
     @property
-    def input_hw(self) -> tuple[int, int]:
-        return self.info.input_hw
-
-    @property
-    def calibration(self) -> RangeCalibration | None:
+    def stored_calibration(self) -> RangeCalibration | None:
         """The range calibration stored in the model by ``poles calibrate --embed`` (None if there is none)."""
         data = self.info.extra.get("calibration")
         return RangeCalibration.from_dict(data) if data else None
+
+    @property
+    def calibration(self) -> RangeCalibration | None:
+        """The stored calibration, refused (ValueError) when it was measured at another input width than this
+        detector runs the model at."""
+        stored = self.stored_calibration
+        return self.check_calibration(stored) if stored else None
+
+    def fits_calibration(self, calibration: RangeCalibration) -> bool:
+        """Whether ``calibration``'s laws hold for this detector's masks: measured at its input width, or on labels."""
+        return calibration.input_width in (None, self.input_hw[1])
+
+    def check_calibration(self, calibration: RangeCalibration) -> RangeCalibration:
+        """``calibration``, or ValueError naming the fix when it was measured at another input width."""
+        if not self.fits_calibration(calibration):
+            measured, width = calibration.input_width, self.input_hw[1]
+            raise ValueError(f"{self.path}: the range calibration was measured at {measured} px input, the model runs "
+                             f"at {width} px here, where its masks read other sizes - run it at {measured} "
+                             f"(input_width={measured}, --imgsz {measured}) or calibrate at {width} "
+                             f"(`poles calibrate --model {model_argument(self.path)} --imgsz {width}`)")
+        return calibration
 
     def _check_signature(self) -> None:
         inputs, outputs = self.session.get_inputs(), self.session.get_outputs()
@@ -205,6 +226,16 @@ class LandmarkDetector:
     def any_input_size(self) -> bool:
         """True for a model exported with ``--dynamic``: it can run on a band of the frame."""
         return not all(isinstance(side, int) for side in self.session.get_inputs()[0].shape[2:])
+
+    def _scaled_input_hw(self, width: int) -> tuple[int, int]:
+        """The model's input size scaled to ``width`` (a multiple of the stride), the height rounded up to one."""
+        stride, (height, exported_width) = self.info.stride, self.info.input_hw
+        if not self.any_input_size:
+            raise ValueError(f"{self.path}: input_width={width}, but the model takes only {exported_width}x{height} - "
+                             "export it with `poles export --dynamic`")
+        if width < stride or width % stride:
+            raise ValueError(f"input_width={width}: give a positive multiple of the model's stride {stride}")
+        return int(math.ceil(height * width / exported_width / stride) * stride), width
 
     def letterbox(self, frame_hw: tuple[int, int], input_hw: tuple[int, int] | None = None) -> Letterbox:
         """The (cached) letterbox for frames of this size (into ``input_hw``, default the model's)."""

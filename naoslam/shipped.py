@@ -24,6 +24,12 @@ def shipped_path(int8: bool = False) -> Path:
 SHIPPED_NAMES = {"shipped": False, "shipped-int8": True}
 
 
+def model_argument(path: Path) -> str:
+    """How a command names the model at ``path``: ``shipped`` / ``shipped-int8`` for the shipped ones."""
+    named = {shipped_path(int8): name for name, int8 in SHIPPED_NAMES.items()}
+    return named.get(Path(path).resolve(), str(path))
+
+
 def resolve_model(name: str | Path) -> Path:
     """``shipped`` / ``shipped-int8`` as the shipped model's path; any other name as a path."""
     return shipped_model(SHIPPED_NAMES[str(name)]) if str(name) in SHIPPED_NAMES else Path(name)

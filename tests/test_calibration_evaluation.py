@@ -344,3 +344,41 @@ def test_evaluate_a_pytorch_checkpoint_like_its_onnx_export(tiny_weights, tiny_o
                             progress=False)
     assert torch_metrics["images"] == onnx_metrics["images"] > 0
     assert abs(torch_metrics["tp"] + torch_metrics["fp"] - onnx_metrics["tp"] - onnx_metrics["fp"]) <= 2
+
+
+def test_a_models_calibration_holds_only_at_the_input_width_it_was_measured_at(calibration_shots, tmp_path, capsys):
+    """A model's masks change with its input width, so its calibration records the width and is refused at another."""
+    from calibration.run import embed_calibration
+    from naoslam.detector import LandmarkDetector
+    from naoslam.shipped import shipped_model
+
+    small = tmp_path / "calibration-320.json"
+    assert main(["calibrate", str(calibration_shots), "--model", "shipped", "--imgsz", "320", "--out", str(small)]) == 0
+    at_320, at_640 = load_calibration(small), LandmarkDetector().calibration
+    assert (at_320.input_width, at_640.input_width) == (320, 640)
+    assert abs(at_320.width_law(20.0) / at_640.width_law(20.0) - 1) > 0.02  # the smaller input's masks read wider
+    assert LandmarkDetector(input_width=320).check_calibration(at_320) is at_320
+    with pytest.raises(ValueError, match=r"measured at 320 px input, the model runs at 640 px here.*--imgsz 640"):
+        LandmarkDetector().check_calibration(at_320)
+
+    model = tmp_path / "poles.onnx"
+    model.write_bytes(shipped_model().read_bytes())
+    embed_calibration(model, at_320)
+    with pytest.raises(ValueError, match="measured at 320 px input"):
+        LandmarkDetector(model).calibration  # noqa: B018 - the property refuses to hand it out at 640
+    assert LandmarkDetector(model, input_width=320).calibration == at_320
+
+    def evaluate_at_320(*calibration: str) -> int:
+        return main(["evaluate", str(calibration_shots), "--imgsz", "320", *calibration, "--out",
+                     str(tmp_path / f"eval{len(calibration)}")])
+
+    assert evaluate_at_320("--calibration", str(small)) == 0
+    assert json.loads((tmp_path / "eval2" / "metrics.json").read_text())["range_error"]["median"] < 0.1
+    assert evaluate_at_320() == 0  # the shipped calibration is the 640 px one: no range figures rather than wrong ones
+    assert "range_error" not in json.loads((tmp_path / "eval0" / "metrics.json").read_text())
+    capsys.readouterr()
+    assert main(["slam", "--sim", "square", "--frontend", "shipped", "--imgsz", "320", "--duration", "5",
+                 "--out", str(tmp_path / "slam")]) == 2
+    assert "measured at 640 px input, the model runs at 320 px" in capsys.readouterr().err
+    assert main(["calibrate", str(calibration_shots), "--imgsz", "320", "--out", str(tmp_path / "labels.json")]) == 2
+    assert "--imgsz is a model's input width" in capsys.readouterr().err

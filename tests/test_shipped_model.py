@@ -18,7 +18,7 @@ from detector.synth.scene import calibration_scene
 from detector.starting_point import SHIPPED_WEIGHTS
 from detector.training import TrainSettings, parse_hyperparameters, train_model
 from export.ship import SIZE_BUDGET
-from naoslam.camera import PinholeCamera
+from naoslam.camera import CameraPose, PinholeCamera
 from naoslam.detector import LandmarkDetector
 from naoslam.shipped import OPERATING_CONF_KEY, shipped_model
 
@@ -212,3 +212,34 @@ def test_openvino_engine_gives_onnxruntimes_answers_on_the_whole_frame_and_the_b
 def test_an_unknown_engine_is_refused():
     with pytest.raises(ValueError, match="engine 'tensorrt'"):
         LandmarkDetector(engine="tensorrt")
+
+
+def test_input_width_runs_the_shipped_model_on_fewer_pixels_and_still_finds_a_near_pole():
+    image, frame = _rendered_pole("gp", 1.5, 10.0, seed=4)
+    small = LandmarkDetector(input_width=320)
+    seen = []
+    forward = small.forward
+    small.forward = lambda blob: seen.append(blob.shape) or forward(blob)
+    found = small(image)
+    assert small.input_hw == (256, 320) and seen == [(1, 3, 256, 320)]
+    assert [d.name for d in found] == ["gp"]
+    mask, truth = found[0].full_mask(image.shape[:2]), frame.poles[0].mask
+    assert (mask & truth).sum() / (mask | truth).sum() > 0.8  # masks stay full frame resolution
+    pose = CameraPose(z=0.5, pitch=math.radians(8.0))
+    small(image, pose)
+    assert seen[-1][3] == 320 and seen[-1][2] < 256  # the band below the horizon, at the smaller scale
+
+
+def test_input_width_is_refused_off_the_stride_and_for_a_fixed_size_model(tiny_onnx):
+    with pytest.raises(ValueError, match="multiple of the model's stride 32"):
+        LandmarkDetector(input_width=300)
+    with pytest.raises(ValueError, match="export it with `poles export --dynamic`"):
+        LandmarkDetector(tiny_onnx, input_width=64)
+
+
+def test_evaluate_and_slam_take_the_input_width(synth_dataset, tmp_path, capsys):
+    assert main(["evaluate", str(synth_dataset), "--imgsz", "320", "--out", str(tmp_path / "eval")]) == 0
+    assert json.loads((tmp_path / "eval" / "metrics.json").read_text())["tp"] > 0
+    assert main(["slam", "--sim", "square", "--imgsz", "320", "--out", str(tmp_path / "slam")]) == 2
+    assert "--imgsz is a model's input width" in capsys.readouterr().err
+    assert not (tmp_path / "slam").exists()

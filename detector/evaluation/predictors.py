@@ -41,12 +41,17 @@ class Predictor:
 
 
 class OnnxPredictor(Predictor):
-    """An exported model run by the naoslam front end (FP32 or INT8)."""
+    """An exported model run by the naoslam front end (FP32 or INT8), at ``input_width`` if given.
 
-    def __init__(self, path: Path):
-        self.detector = LandmarkDetector(path, conf=SWEEP_CONF)
+    Ranges come from ``calibration``, else from the model's own one where it was measured at this input width.
+    """
+
+    def __init__(self, path: Path, input_width: int | None = None, calibration: RangeCalibration | None = None):
+        self.detector = LandmarkDetector(path, conf=SWEEP_CONF, input_width=input_width)
         self.name = Path(path).name
-        self.calibration = self.detector.calibration
+        own = self.detector.stored_calibration
+        self.calibration = self.detector.check_calibration(calibration) if calibration else \
+            own if own and self.detector.fits_calibration(own) else None
         self.operating_conf = self.detector.stored_conf
 
     def __call__(self, frame: np.ndarray) -> Prediction:
@@ -93,19 +98,20 @@ class ColourFilterPredictor(Predictor):
                           points=[d.divide_centre for d in found], band_distances=[d.band_distance_px for d in found])
 
 
-def make_predictor(model: str, imgsz: int = 640, calibration: RangeCalibration | None = None) -> Predictor:
-    """``colour-filter``, ``shipped`` / ``shipped-int8`` (the models in naoslam), a ``.pt`` checkpoint or an ``.onnx``."""
+def make_predictor(model: str, imgsz: int | None = None, calibration: RangeCalibration | None = None) -> Predictor:
+    """``colour-filter``, ``shipped`` / ``shipped-int8`` (the models in naoslam), a ``.pt`` checkpoint or an ``.onnx``.
+
+    ``imgsz``: the network's input width (default: 640 for a checkpoint, an ONNX model's own).
+    """
     if model == "colour-filter":
         return ColourFilterPredictor(calibration)
     path = resolve_model(model)
-    if path.suffix == ".pt":
-        if not path.is_file():
-            raise FileNotFoundError(f"{path}: no such checkpoint")
-        predictor = TorchPredictor(path, imgsz)
-    elif path.suffix == ".onnx":
-        predictor = OnnxPredictor(path)
-    else:
+    if path.suffix == ".onnx":
+        return OnnxPredictor(path, imgsz, calibration)
+    if path.suffix != ".pt":
         raise ValueError(f"--model {model!r}: give a .pt checkpoint, an .onnx model, `shipped` or `colour-filter`")
-    if calibration is not None:
-        predictor.calibration = calibration
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such checkpoint")
+    predictor = TorchPredictor(path, imgsz or 640)
+    predictor.calibration = calibration
     return predictor
