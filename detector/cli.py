@@ -248,6 +248,9 @@ def build_parser() -> argparse.ArgumentParser:
     predict.add_argument("--model", type=Path, help="ONNX model (default: the shipped model)")
     predict.add_argument("--conf", type=float, help="confidence threshold (default: the model's own)")
     predict.add_argument("--format", choices=("yolov8", "coco"), default="yolov8", help="pre-annotation layout")
+    predict.add_argument("--imgsz", type=int, help="with --video: the model's input width (a model exported with "
+                                                   "--dynamic; default its own), to see what a robot running it "
+                                                   "smaller sees")
     predict.add_argument("--force", action="store_true")
 
     demo = sub.add_parser("demo", help="run the whole pipeline on a synthetic dataset and write report.html")
@@ -470,12 +473,15 @@ def _predict(args: argparse.Namespace) -> int:
     from detector.prediction import overlay_video, prelabel
 
     if args.images is not None:
+        if args.imgsz is not None:
+            raise ValueError("--imgsz is for --video: pre-labels come from the model at its own input size")
         result = prelabel(args.images, args.out, args.model, args.conf, args.format, args.force)
         print(f"pre-labelled {result['frames']} frames ({result['poles']} poles, {result['empty']} without) at conf "
               f"{result['conf']:.2f}: {result['out']} - upload it to Roboflow as pre-annotations, correct, export")
     else:
-        result = overlay_video(args.video, args.out, args.model, args.conf, args.force)
-        print(f"wrote {result['frames']} frames to {result['video']} and the contact sheet {result['sheet']}")
+        result = overlay_video(args.video, args.out, args.model, args.conf, args.force, input_width=args.imgsz)
+        print(f"wrote {result['frames']} frames to {result['video']} and the contact sheet {result['sheet']}"
+              + ("" if result["ranges"] else " (no ranges drawn: the model has no calibration for this input width)"))
     return 0
 
 

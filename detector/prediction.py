@@ -127,8 +127,12 @@ def _write_coco(out: Path, labelled, source: dict[str, Path], force: bool, prote
 
 
 def overlay_video(source: Path, out: Path, model: Path | None = None, conf: float | None = None,
-                  force: bool = False, progress: bool = True) -> dict:
-    """Write ``out`` (MP4, one frame per input frame, at the input's size) and ``out`` with ``.png`` (contact sheet)."""
+                  force: bool = False, progress: bool = True, input_width: int | None = None) -> dict:
+    """Write ``out`` (MP4, one frame per input frame, at the input's size) and ``out`` with ``.png`` (contact sheet).
+
+    ``input_width`` runs the model smaller, as a slower robot would; ranges are drawn only where the model's
+    calibration was measured at that width (``ranges`` in the result says whether they were).
+    """
     out = Path(out)
     if out.suffix.lower() != ".mp4":
         raise ValueError(f"--out {out}: the overlay video is written as MP4 - name it *.mp4")
@@ -136,8 +140,10 @@ def overlay_video(source: Path, out: Path, model: Path | None = None, conf: floa
         raise FileExistsError(f"{out} exists - pick another --out or add --force")
     if Path(source).is_dir() and Path(source).resolve() in out.resolve().parents:
         raise ValueError(f"--out {out} lies inside the frames folder {source}: inputs are never written")
-    detector = LandmarkDetector(model, conf=conf)
-    measurer = MeasurementModel(detector.calibration, detector.conf) if detector.calibration else None
+    detector = LandmarkDetector(model, conf=conf, input_width=input_width)
+    calibration = detector.stored_calibration
+    fits = calibration is not None and detector.fits_calibration(calibration)
+    measurer = MeasurementModel(calibration, detector.conf) if fits else None
     count, fps, frames = frames_in(source)
     every = max(1, count // SHEET_TILES)
     tiles, written, writer, size = [], 0, None, None
@@ -165,7 +171,8 @@ def overlay_video(source: Path, out: Path, model: Path | None = None, conf: floa
             writer.release()
         tmp.unlink(missing_ok=True)
     sheet = contact_sheet(tiles, out.with_suffix(".png"))
-    return {"frames": written, "fps": fps, "video": str(out), "sheet": str(sheet), "conf": detector.conf}
+    return {"frames": written, "fps": fps, "video": str(out), "sheet": str(sheet), "conf": detector.conf,
+            "ranges": fits}
 
 
 def draw_detections(frame: np.ndarray, detections: list[Detection], measurer: MeasurementModel | None) -> np.ndarray:

@@ -77,3 +77,15 @@ def test_prelabel_and_video_on_real_frames(real_poles, tmp_path):
     assert len(load_dataset(tmp_path / "pre").samples) == len(list(images.glob("*.jpg")))
     assert main(["predict", "--video", str(images), "--out", str(tmp_path / "real.mp4")]) == 0
     assert int(cv2.VideoCapture(str(tmp_path / "real.mp4")).get(cv2.CAP_PROP_FRAME_COUNT)) == 14
+
+
+def test_overlay_video_at_a_smaller_input_draws_no_range_the_calibration_cannot_give(frames, tmp_path, capsys):
+    from detector.prediction import overlay_video
+
+    own = overlay_video(frames, tmp_path / "own.mp4", progress=False)
+    small = overlay_video(frames, tmp_path / "small.mp4", progress=False, input_width=320)
+    assert (own["ranges"], small["ranges"]) == (True, False)  # the shipped calibration is the 640 px one
+    assert main(["predict", "--video", str(frames), "--out", str(tmp_path / "cli.mp4"), "--imgsz", "320"]) == 0
+    assert "no ranges drawn" in capsys.readouterr().out
+    assert main(["predict", "--images", str(frames), "--out", str(tmp_path / "labels"), "--imgsz", "320"]) == 2
+    assert "--imgsz is for --video" in capsys.readouterr().err and not (tmp_path / "labels").exists()
