@@ -230,11 +230,12 @@ class LandmarkDetector:
     def _scaled_input_hw(self, width: int) -> tuple[int, int]:
         """The model's input size scaled to ``width`` (a multiple of the stride), the height rounded up to one."""
         stride, (height, exported_width) = self.info.stride, self.info.input_hw
+        asked = f"input width {width} (--imgsz / input_width)"
         if not self.any_input_size:
-            raise ValueError(f"{self.path}: input_width={width}, but the model takes only {exported_width}x{height} - "
-                             "export it with `poles export --dynamic`")
+            raise ValueError(f"{self.path}: {asked}, but the model takes only {exported_width}x{height} - export it "
+                             "with `poles export --dynamic`")
         if width < stride or width % stride:
-            raise ValueError(f"input_width={width}: give a positive multiple of the model's stride {stride}")
+            raise ValueError(f"{asked}: give a positive multiple of the model's stride {stride}")
         return int(math.ceil(height * width / exported_width / stride) * stride), width
 
     def letterbox(self, frame_hw: tuple[int, int], input_hw: tuple[int, int] | None = None) -> Letterbox:
