@@ -141,9 +141,8 @@ def overlay_video(source: Path, out: Path, model: Path | None = None, conf: floa
     if Path(source).is_dir() and Path(source).resolve() in out.resolve().parents:
         raise ValueError(f"--out {out} lies inside the frames folder {source}: inputs are never written")
     detector = LandmarkDetector(model, conf=conf, input_width=input_width)
-    calibration = detector.stored_calibration
-    fits = calibration is not None and detector.fits_calibration(calibration)
-    measurer = MeasurementModel(calibration, detector.conf) if fits else None
+    calibration = detector.usable_calibration
+    measurer = MeasurementModel(calibration, detector.conf) if calibration else None
     count, fps, frames = frames_in(source)
     every = max(1, count // SHEET_TILES)
     tiles, written, writer, size = [], 0, None, None
@@ -172,7 +171,7 @@ def overlay_video(source: Path, out: Path, model: Path | None = None, conf: floa
         tmp.unlink(missing_ok=True)
     sheet = contact_sheet(tiles, out.with_suffix(".png"))
     return {"frames": written, "fps": fps, "video": str(out), "sheet": str(sheet), "conf": detector.conf,
-            "ranges": fits}
+            "ranges": measurer is not None}
 
 
 def draw_detections(frame: np.ndarray, detections: list[Detection], measurer: MeasurementModel | None) -> np.ndarray:

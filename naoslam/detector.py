@@ -198,6 +198,13 @@ class LandmarkDetector:
         stored = self.stored_calibration
         return self.check_calibration(stored) if stored else None
 
+    @property
+    def usable_calibration(self) -> RangeCalibration | None:
+        """The stored calibration where it holds at this detector's input width, else None: no ranges rather than
+        wrong ones."""
+        stored = self.stored_calibration
+        return stored if stored is not None and self.fits_calibration(stored) else None
+
     def fits_calibration(self, calibration: RangeCalibration) -> bool:
         """Whether ``calibration``'s laws hold for this detector's masks: measured at its input width, or on labels."""
         return calibration.input_width in (None, self.input_hw[1])

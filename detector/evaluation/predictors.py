@@ -49,9 +49,8 @@ class OnnxPredictor(Predictor):
     def __init__(self, path: Path, input_width: int | None = None, calibration: RangeCalibration | None = None):
         self.detector = LandmarkDetector(path, conf=SWEEP_CONF, input_width=input_width)
         self.name = Path(path).name
-        own = self.detector.stored_calibration
-        self.calibration = self.detector.check_calibration(calibration) if calibration else \
-            own if own and self.detector.fits_calibration(own) else None
+        self.calibration = (self.detector.check_calibration(calibration) if calibration is not None
+                            else self.detector.usable_calibration)
         self.operating_conf = self.detector.stored_conf
 
     def __call__(self, frame: np.ndarray) -> Prediction:
