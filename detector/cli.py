@@ -9,7 +9,7 @@ from augment.config import OPERATIONS, AugmentConfig
 from detector.errors import run_command
 from detector.openmp_wait import sleep_while_waiting
 from detector.synth.scene import SceneConfig
-from naoslam.sim import PATHS
+from naoslam.sim import PATHS, SimConfig
 
 
 #: Augmentation strength limits that have a flag of their own (AugmentConfig field -> help text).
@@ -232,6 +232,9 @@ def build_parser() -> argparse.ArgumentParser:
     slam.add_argument("--confusion-rate", type=float, default=0.0, help="sim: share of sightings given another class")
     slam.add_argument("--lookalikes", type=int, default=0,
                       help="sim: look-alike poles of a wrong class standing in the walk's area")
+    slam.add_argument("--frame-rate", type=float,
+                      help=f"sim: frames per second the front end gets through, of the camera's {SimConfig.frame_hz:g} "
+                           "(default all; e.g. 2.5 or 1.25): what a slower CPU affords, on the same walk")
     slam.add_argument("--odometry-bias", type=float, default=1.25,
                       help="sim: reported stride per true stride (default 1.25: the Nao over-reports)")
     slam.add_argument("--seed", type=int, default=0)
@@ -276,7 +279,6 @@ def _slam(args: argparse.Namespace) -> int:
     from naoslam.atomic import write_json
     from naoslam.ekf_slam import SlamConfig
     from naoslam.runner import run_slam
-    from naoslam.sim import SimConfig
 
     calibration = load_calibration(args.calibration) if args.calibration else None
     frontend = args.frontend or ("shipped" if args.frames else None)
@@ -287,7 +289,8 @@ def _slam(args: argparse.Namespace) -> int:
         def make(seed: int):
             sim = SimConfig(path=args.sim, duration_s=args.duration or 90.0, seed=seed,
                             false_positive_rate=args.false_positive_rate, confusion_rate=args.confusion_rate,
-                            lookalikes=args.lookalikes, stride_scale=args.odometry_bias)
+                            lookalikes=args.lookalikes, stride_scale=args.odometry_bias,
+                            front_end_hz=args.frame_rate)
             return sim_sequence(sim, front_end, camera_pose=not args.no_camera_pose)
     elif args.utias:
         def make(seed: int):

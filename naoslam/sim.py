@@ -40,6 +40,9 @@ class SimConfig:
     turn_rad_s: float = 0.6
     odometry_hz: float = 10.0
     frame_hz: float = 5.0
+    #: Frames per second the front end gets through (every frame_hz / front_end_hz-th camera frame; None: all), as
+    #: a slower CPU would. The walk, its odometry and the frames kept are the same as at the full rate.
+    front_end_hz: float | None = None
     hfov_deg: float = 56.3
     max_range_m: float = 6.0
     range_rel_std: float = 0.05
@@ -68,6 +71,16 @@ class SimConfig:
                 raise ValueError(f"--{name.replace('_', '-')} {getattr(self, name)} must lie in 0..1")
         if self.duration_s <= 0 or self.stride_scale <= 0 or self.lookalikes < 0:
             raise ValueError("--duration and --odometry-bias must be positive, --lookalikes not negative")
+        if self.front_end_hz is not None:
+            every = self.frame_hz / self.front_end_hz if self.front_end_hz > 0 else 0.0
+            if every < 1 or abs(every - round(every)) > 1e-6:
+                raise ValueError(f"--frame-rate {self.front_end_hz:g}: give the camera's {self.frame_hz:g} Hz divided "
+                                 f"by a whole number (e.g. {self.frame_hz / 2:g}, {self.frame_hz / 4:g})")
+
+    @property
+    def frames_per_front_end_frame(self) -> int:
+        """How many camera frames pass for each one the front end gets."""
+        return 1 if self.front_end_hz is None else int(round(self.frame_hz / self.front_end_hz))
 
 
 @dataclass
@@ -169,5 +182,7 @@ def simulate(config: SimConfig = SimConfig(), landmarks: dict[str, tuple[float, 
         odometry = np.array([odometry[0] + ds * math.cos(odometry[2]), odometry[1] + ds * math.sin(odometry[2]),
                              float(wrap(odometry[2] + dtheta))])
         seen = sightings(true_pose, landmarks, config, rng, lookalikes) if i % frame_every == 0 else None
+        if seen is not None and (i // frame_every) % config.frames_per_front_end_frame:
+            seen = None  # a frame the front end had no time for; drawn all the same, so the walk stays the same
         steps.append(SimStep(i * dt, true_pose, odometry, seen))
     return Walk(steps, landmarks, config, lookalikes)

@@ -191,6 +191,18 @@ def test_ekf_and_eif_agree_on_one_linear_step():
     assert np.allclose(np.linalg.inv(eif.omega), ekf.sigma, atol=1e-9)
 
 
+def test_a_slower_front_end_sees_every_nth_frame_of_the_same_walk():
+    full = simulate(SimConfig(seed=3, duration_s=20))
+    slow = simulate(SimConfig(seed=3, duration_s=20, front_end_hz=1.25))
+    for a, b in zip(full.steps, slow.steps, strict=True):
+        assert np.array_equal(a.true_pose, b.true_pose) and np.array_equal(a.odometry_pose, b.odometry_pose)
+    framed = [i for i, step in enumerate(full.steps) if step.measurements is not None]
+    assert [i for i, step in enumerate(slow.steps) if step.measurements is not None] == framed[::4]
+    assert all(slow.steps[i].measurements == full.steps[i].measurements for i in framed[::4])
+    with pytest.raises(ValueError, match="--frame-rate 2: give the camera's 5 Hz divided by a whole number"):
+        SimConfig(front_end_hz=2.0)
+
+
 def test_frames_merge_in_time_order_with_the_offset():
     controls = [Event(t, np.zeros(3)) for t in (0.0, 0.1, 0.2, 0.3)]
     frames = [Event(0.0, measurements=[]), Event(0.1, measurements=[])]

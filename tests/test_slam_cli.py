@@ -35,11 +35,24 @@ def test_slam_command_writes_metrics_map_path_plots_and_comparison(tmp_path, cap
 
 
 @pytest.mark.parametrize("argv, message", [(["--min-views", "0"], "at least 1"), (["--gate", "-1"], "positive"),
-                                          (["--frames", "x"], "--frames needs --odometry")])
+                                          (["--frames", "x"], "--frames needs --odometry"),
+                                          (["--frame-rate", "3"], "give the camera's 5 Hz divided by a whole number")])
 def test_slam_command_refuses_bad_settings(argv, message, tmp_path, capsys):
     base = [] if "--frames" in argv else ["--sim", "square"]
     assert main(["slam", *base, *argv, "--out", str(tmp_path / "o")]) == 2
     assert message in capsys.readouterr().err
+
+
+def test_a_slower_frame_rate_hands_the_filter_fewer_sightings_of_the_same_walk(tmp_path):
+    counts, odometry = {}, {}
+    for rate in ("5", "1.25"):
+        out = tmp_path / rate
+        assert main(["slam", "--sim", "square", "--duration", "30", "--frame-rate", rate, "--out", str(out)]) == 0
+        metrics = json.loads((out / "metrics.json").read_text())
+        counts[rate] = sum(metrics["counts"][key] for key in ("accepted", "rejected", "pending", "initialised"))
+        odometry[rate] = metrics["odometry_error"]["mean"]
+    assert odometry["5"] == odometry["1.25"]  # the same walk
+    assert 3 * counts["1.25"] < counts["5"] < 5 * counts["1.25"]  # about a quarter of the sightings
 
 
 def _recording(folder):
