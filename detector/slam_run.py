@@ -115,7 +115,7 @@ def image_sequences(config: SimConfig, front_ends: list[FrontEnd], progress: boo
     for front_end in front_ends:
         measure = front_end.measurer()
         sequence = walk_sequence(walk, [measure(frame, pose) for frame, pose in zip(frames, poses)])
-        sequence.name = f"sim {config.path}, images through {Path(front_end.model).name}"
+        sequence.name = f"{config.label}, images through {Path(front_end.model).name}"
         sequences.append(sequence)
     return sequences
 

@@ -52,7 +52,7 @@ def walk_sequence(walk: Walk, replace_measurements: list[list[Measurement]] | No
             frame += 1
         events.append(Event(step.t, control, measurements, step.true_pose, step.odometry_pose))
     return Sequence(events, steps[0].true_pose.copy(), OdometryModel(walk.config.odometry_alphas()), walk.landmarks,
-                    f"sim {walk.config.path}")
+                    walk.config.label)
 
 
 @dataclass

@@ -78,6 +78,11 @@ class SimConfig:
                                  f"by a whole number (e.g. {self.frame_hz / 2:g}, {self.frame_hz / 4:g})")
 
     @property
+    def label(self) -> str:
+        """The walk's name in reports: its path, and the front end's frame rate where it is not the camera's."""
+        return f"sim {self.path}" + (f" at {self.front_end_hz:g} frames/s" if self.front_end_hz is not None else "")
+
+    @property
     def frames_per_front_end_frame(self) -> int:
         """How many camera frames pass for each one the front end gets."""
         return 1 if self.front_end_hz is None else int(round(self.frame_hz / self.front_end_hz))

@@ -51,6 +51,7 @@ def test_a_slower_frame_rate_hands_the_filter_fewer_sightings_of_the_same_walk(t
         metrics = json.loads((out / "metrics.json").read_text())
         counts[rate] = sum(metrics["counts"][key] for key in ("accepted", "rejected", "pending", "initialised"))
         odometry[rate] = metrics["odometry_error"]["mean"]
+        assert metrics["sequence"] == f"sim square at {rate} frames/s"
     assert odometry["5"] == odometry["1.25"]  # the same walk
     assert 3 * counts["1.25"] < counts["5"] < 5 * counts["1.25"]  # about a quarter of the sightings
 
