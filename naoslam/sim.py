@@ -79,7 +79,7 @@ class SimConfig:
 
     @property
     def label(self) -> str:
-        """The walk's name in reports: its path, and the front end's frame rate where it is not the camera's."""
+        """The walk's name in reports: its path, and the front end's frame rate where one was set."""
         return f"sim {self.path}" + (f" at {self.front_end_hz:g} frames/s" if self.front_end_hz is not None else "")
 
     @property
