@@ -48,6 +48,12 @@ def _add_dataset_argument(parser: argparse.ArgumentParser, description: str) -> 
     parser.add_argument("--data", dest="data_option", type=Path, metavar="DATA", help="the same as DATA")
 
 
+def _add_input_width_argument(parser: argparse.ArgumentParser, applies: str = "") -> None:
+    """``--imgsz W``: run the ONNX model at W px wide (``LandmarkDetector(input_width=W)``), as a slower CPU would."""
+    parser.add_argument("--imgsz", type=int, help=f"{applies}the model's input width, e.g. 320 for a slower CPU (a "
+                                                  "model exported with --dynamic; default: its own)")
+
+
 def _one_dataset(args: argparse.Namespace) -> Path:
     """The dataset given as DATA or ``--data``, whichever was given (refused when neither or two differ)."""
     given = {path for path in (args.data, args.data_option) if path is not None}
@@ -171,9 +177,7 @@ def build_parser() -> argparse.ArgumentParser:
     calib.add_argument("--truth", type=Path, help="CSV image,class,range_m instead of annotations.json")
     calib.add_argument("--plot", type=Path, help="write the fit plot (PNG)")
     calib.add_argument("--embed", type=Path, help="store the calibration in this ONNX model's metadata")
-    calib.add_argument("--imgsz", type=int, help="--model's input width, as the robot will run it (a model exported "
-                                                 "with --dynamic; default: its own): masks and so the laws change "
-                                                 "with it")
+    _add_input_width_argument(calib, "measure --model's masks as the robot will run it: ")
     calib.add_argument("--noise-data", type=Path, action="append", default=[], metavar="WALK",
                        help="frames of a walk with true ranges (`poles synth --walk`, or your own robot's with "
                             "annotations.json), measured like --data: the noise the filter is told (repeatable; "
@@ -190,9 +194,7 @@ def build_parser() -> argparse.ArgumentParser:
                           help="confidence threshold for the counts (default: the model's own, else 0.5)")
     evaluate.add_argument("--calibration", type=Path, help="calibration.json for range errors "
                                                            "(default: the one embedded in the ONNX model)")
-    evaluate.add_argument("--imgsz", type=int, help="network input width: .pt checkpoints (default 640) and ONNX "
-                                                    "models exported with --dynamic (default: the model's own), "
-                                                    "e.g. 320 for a slower CPU")
+    _add_input_width_argument(evaluate, "a .pt checkpoint at 640 unless given; ONNX: ")
     evaluate.add_argument("--out", type=Path, required=True, help="folder for metrics.json, plots and FP/FN overlays")
 
     slam = sub.add_parser("slam", help="run an EKF SLAM back end on a simulated walk, a UTIAS log or a recording")
@@ -204,8 +206,7 @@ def build_parser() -> argparse.ArgumentParser:
     slam.add_argument("--frontend", help="model.onnx, `shipped` or colour-filter: the image-level simulation / "
                                          "recording (default for --frames: the shipped model)")
     slam.add_argument("--calibration", type=Path, help="calibration.json (default: the one in the model)")
-    slam.add_argument("--imgsz", type=int, help="the model's input width, for a model exported with --dynamic "
-                                                "(default: its own), e.g. 320 for a slower CPU")
+    _add_input_width_argument(slam)
     slam.add_argument("--conf", type=float,
                       help="detections used from this confidence (default: the model's own threshold, else 0.85)")
     slam.add_argument("--no-camera-pose", action="store_true",
@@ -251,9 +252,7 @@ def build_parser() -> argparse.ArgumentParser:
     predict.add_argument("--model", type=Path, help="ONNX model (default: the shipped model)")
     predict.add_argument("--conf", type=float, help="confidence threshold (default: the model's own)")
     predict.add_argument("--format", choices=("yolov8", "coco"), default="yolov8", help="pre-annotation layout")
-    predict.add_argument("--imgsz", type=int, help="with --video: the model's input width (a model exported with "
-                                                   "--dynamic; default its own), to see what a robot running it "
-                                                   "smaller sees")
+    _add_input_width_argument(predict, "with --video, to see what a robot running it smaller sees: ")
     predict.add_argument("--force", action="store_true")
 
     demo = sub.add_parser("demo", help="run the whole pipeline on a synthetic dataset and write report.html")
