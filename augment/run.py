@@ -7,10 +7,10 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from tqdm import tqdm
 
 from augment.config import AugmentConfig
 from augment.pipeline import augment_copy, choose_operations
+from detector.console import show_progress
 from detector.datasets.intake import open_dataset
 from detector.datasets.io import DatasetWriter
 from detector.datasets.model import Instance, Sample
@@ -70,7 +70,8 @@ def augment_dataset(data: str | Path, out: str | Path, *, copies: int = 7, seed:
             if sample.image is not None:
                 writer.copy_sample(sample)
         results = ordered_map(_augment_sample, tasks, workers or default_workers(len(train)), chunksize=2)
-        for sample, made in tqdm(zip(train, results), total=len(train), desc="augmenting", unit="img", disable=not progress):
+        augmented = show_progress(zip(train, results), "augmenting", "img", total=len(train), enabled=progress)
+        for sample, made in augmented:
             for copy in made:
                 writer.add("train", copy.filename, copy.jpeg, copy.instances)
                 summary["instances_into_copies"] += len(sample.instances)

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from tqdm import tqdm
 
+from detector.console import show_progress
 from detector.datasets.intake import open_dataset
 from detector.datasets.polygons import polygon_to_mask
 from detector.datasets.model import Dataset
@@ -76,7 +76,7 @@ def measure_samples(ranged: RangedDataset, detector: LandmarkDetector | None = N
     its foot-row range where the image's camera pose is known)."""
     dataset, truth = ranged.dataset, ranged.truth
     samples = []
-    for sample in tqdm(dataset.samples, desc="measuring", unit="img", disable=not progress):
+    for sample in show_progress(dataset.samples, "measuring", "img", enabled=progress):
         entries = truth.get(sample.image.name)
         if not entries:
             continue

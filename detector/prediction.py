@@ -14,8 +14,8 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from tqdm import tqdm
 
+from detector.console import show_progress
 from detector.datasets.io import IMAGE_SUFFIXES, DatasetWriter, check_output_folder
 from detector.datasets.model import Instance
 from detector.datasets.polygons import mask_to_polygon
@@ -86,7 +86,7 @@ def prelabel(images: Path, out: Path, model: Path | None = None, conf: float | N
     detector = LandmarkDetector(model, conf=conf)
     count, _, frames = frames_in(images)
     labelled: list[tuple[str, np.ndarray, list[Instance]]] = []
-    for name, frame in tqdm(frames, total=count, desc="pre-labelling", unit="img", disable=not progress):
+    for name, frame in show_progress(frames, "pre-labelling", "img", total=count, enabled=progress):
         labelled.append((name, frame, detections_to_instances(detector(frame), frame.shape[:2])))
     source = {name: images / name for name, _, _ in labelled} if Path(images).is_dir() else {}
     if fmt == "yolov8":
@@ -149,8 +149,7 @@ def overlay_video(source: Path, out: Path, model: Path | None = None, conf: floa
     tmp = out.with_name(f".{out.stem}.partial.mp4")
     out.parent.mkdir(parents=True, exist_ok=True)
     try:
-        for index, (name, frame) in enumerate(tqdm(frames, total=count, desc="overlay", unit="frame",
-                                                   disable=not progress)):
+        for index, (name, frame) in enumerate(show_progress(frames, "overlay", "frame", total=count, enabled=progress)):
             if writer is None:
                 size = frame.shape[1::-1]
                 writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)

@@ -176,6 +176,18 @@ def test_a_logged_check_keeps_its_table_headers_whole(dataset_copy, capsys, monk
     header = next(line for line in capsys.readouterr().out.splitlines() if "split" in line)
     assert all(word in header for word in ("images", "empty", "box-only", "unreadable", "poles", "image sizes"))
 
+
+def test_a_logged_progress_bar_writes_whole_lines(capsys):
+    """Into a pipe tqdm would join every update into one line of the log with carriage returns."""
+    from detector.console import show_progress
+
+    assert list(show_progress(range(500), "rendering", "img")) == list(range(500))
+    lines = [line.strip("\r") for line in capsys.readouterr().err.split("\n") if line.strip()]
+    assert len(lines) == 2  # the start and the end, each a line of its own: nothing in between inside 30 seconds
+    assert lines[0].startswith("rendering:   0%") and lines[1].startswith("rendering: 100%")
+    assert "500/500" in lines[1] and "\r" not in "".join(lines)
+
+
 def test_require_clean_lists_problems(dataset_copy):
     label = _first_labelled(dataset_copy)
     _append_line(label, "0 0.1 0.1")

@@ -10,9 +10,8 @@ import cv2
 import numpy as np
 from rich.console import Console
 from rich.table import Table
-from tqdm import tqdm
 
-from detector.console import make_console
+from detector.console import make_console, show_progress
 from detector.datasets.io import DatasetWriter, load_dataset
 from detector.datasets.labels import BOX_ONLY
 from detector.datasets.model import SPLITS, Dataset, DatasetError, Problem, Sample
@@ -45,7 +44,7 @@ def check_dataset(path: str | Path, progress: bool = True, renames: dict[str, st
         return CheckReport(Dataset(Path(path), [], exc.problems))
     report = CheckReport(dataset, sizes={split: Counter() for split in SPLITS})
     images = [s for s in dataset.samples if s.image is not None]
-    for sample in tqdm(images, desc="decoding images", unit="img", disable=not progress, leave=False):
+    for sample in show_progress(images, "decoding images", "img", enabled=progress, leave=False):
         size = _image_size(sample, dataset.problems)
         if size is None:
             report.unreadable.add(sample.image)

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from tqdm import tqdm
 
+from detector.console import show_progress
 from detector.datasets.intake import open_dataset
 from detector.datasets.polygons import polygon_to_mask
 from detector.datasets.truth import load_truth
@@ -31,7 +31,7 @@ def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", c
         raise ValueError(f"{data}: the {split!r} split has no images - pick another with --split")
     truth = load_truth(dataset)
     images, frames = [], {}
-    for sample in tqdm(samples, desc=f"evaluating {predictor.name}", unit="img", disable=not progress):
+    for sample in show_progress(samples, f"evaluating {predictor.name}", "img", enabled=progress):
         frame = cv2.imread(str(sample.image))
         h, w = frame.shape[:2]
         masks = [polygon_to_mask(inst.pixels(w, h), w, h) for inst in sample.instances]

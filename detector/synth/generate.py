@@ -6,8 +6,8 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from tqdm import tqdm
 
+from detector.console import show_progress
 from detector.datasets.io import DatasetWriter
 from detector.datasets.model import Instance
 from detector.datasets.polygons import mask_to_polygon
@@ -214,7 +214,7 @@ def generate_dataset(out: str | Path, job: SynthJob, *, workers: int | None = No
     tiles = []
     with DatasetWriter(out, force=force) as writer:
         results = ordered_map(_render_star, ((job, i) for i in range(job.images)), workers)
-        for sample in tqdm(results, total=job.images, desc="rendering", unit="img", disable=not progress):
+        for sample in show_progress(results, "rendering", "img", total=job.images, enabled=progress):
             name = f"{kind}_{sample.index:05d}.jpg"
             writer.add(splits[sample.index], name, sample.jpeg, sample.instances)
             annotations["images"][name] = {"split": splits[sample.index], "width": sample.width,

@@ -6,8 +6,8 @@ from functools import lru_cache
 
 import cv2
 import numpy as np
-from tqdm import tqdm
 
+from detector.console import show_progress
 from detector.parallel import default_workers, ordered_map
 from detector.synth.effects import apply_camera_effects, camera_effects
 from detector.synth.objects import pole
@@ -77,7 +77,7 @@ def render_walk(walk: Walk, seed: int = 0, camera: PinholeCamera = PinholeCamera
     """BGR frames at every step of the walk that has a frame (where the measurement-level sim has sightings)."""
     steps = frame_steps(walk)
     frames = ordered_map(_render, [(walk, i, seed, camera) for i in steps], workers or default_workers(len(steps)))
-    return list(tqdm(frames, total=len(steps), desc="rendering the walk", unit="frame", disable=not progress))
+    return list(show_progress(frames, "rendering the walk", "frame", total=len(steps), enabled=progress))
 
 
 def walk_camera_poses(walk: Walk, seed: int = 0) -> list[CameraPose]:
