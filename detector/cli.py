@@ -222,6 +222,9 @@ def build_parser() -> argparse.ArgumentParser:
     slam.add_argument("--no-self-calibration", action="store_true",
                       help="do not estimate the odometry's stride and turn scales")
     slam.add_argument("--min-views", type=int, default=3, help="agreeing sightings before a landmark enters the map")
+    slam.add_argument("--min-separation", type=float, default=0.5, metavar="METRES",
+                      help="no landmark enters the map this close to a mapped one: two poles never stand that close "
+                           "(default 0.5; 0: off)")
     slam.add_argument("--outlier-filter", action="store_true", help="drop measurements 0.4 m / pi/3 off prediction")
     slam.add_argument("--gate", type=float, default=9.21,
                       help="Mahalanobis gate on every update (chi-square, 2 dof; default 9.21 = 99 %%)")
@@ -304,7 +307,7 @@ def _slam(args: argparse.Namespace) -> int:
     association = args.association or ("class" if args.utias else "nearest")
     config = SlamConfig(linearisation={"ekf": "standard"}.get(args.backend, args.backend),
                         outlier_filter=args.outlier_filter, gate=None if args.no_gate else args.gate,
-                        min_views=args.min_views, association=association,
+                        min_views=args.min_views, min_separation_m=args.min_separation, association=association,
                         self_calibrate=not args.no_self_calibration)
     sequence = make(args.seed)
     metrics = write_outputs(run_slam(sequence, config), sequence, args.out)

@@ -67,6 +67,26 @@ def test_a_single_false_positive_never_enters_the_map():
     assert slam.update([sighting]).pending == ["gp"] and slam.update([sighting]).initialised == ["gp"]
 
 
+@pytest.mark.parametrize("separation, mapped", [(0.5, {"bp"}), (0.0, {"bp", "gp"})])
+def test_a_second_box_on_a_mapped_pole_never_becomes_a_landmark(separation, mapped):
+    """The detector's second box of another class on the same pole: the pole's landmark is taken by the first box,
+    so no gate explains the second; only the separation rule keeps it from starting a phantom beside the pole."""
+    slam = _mapped(SlamConfig(min_separation_m=separation))
+    boxes = [Measurement(2.0, 0.1, "bp", 0.9, 0.05, 0.02), Measurement(2.1, 0.11, "gp", 0.6, 0.05, 0.02)]
+    logs = [slam.update(boxes) for _ in range(5)]
+    assert all(log.accepted[0] == "bp" for log in logs)
+    assert set(slam.landmarks) == mapped
+
+
+def test_a_pole_a_metre_from_a_landmark_still_enters_the_map():
+    slam = _mapped()
+    biased = Measurement(2.3, 0.1, "bp", 0.9, 0.02, 0.01)  # 0.3 m beyond the landmark, 15 sigma out: never mapped
+    beside = Measurement(2.9, 0.1, "bp", 0.9, 0.02, 0.01)  # 0.9 m beyond: another pole
+    assert [slam.update([biased]).rejected for _ in range(4)] == [["bp"]] * 4
+    assert [slam.update([beside]).initialised for _ in range(3)] == [[], [], ["bp"]]
+    assert len(slam.landmarks) == 2
+
+
 def test_a_confused_class_updates_the_only_landmark_in_the_gate():
     slam = _mapped()
     log = slam.update([Measurement(2.02, 0.1, "gp", 0.9, 0.05, 0.02)])
