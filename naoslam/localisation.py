@@ -2,9 +2,13 @@
 
 As in the 2018 thesis: the same odometry motion model and range-bearing measurements; the EIF keeps the
 information matrix Omega = Sigma^-1 and vector xi = Omega mu, so its correction is additive
-(Omega += H^T Q^-1 H) and its prediction needs the inversion.
+(Omega += H^T Q^-1 H) and its prediction needs the inversion. As in SLAM, no landmark takes two detections of one
+frame: of a second box on the same pole, only the detection nearest the prediction is used.
 """
 from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Callable
 
 import numpy as np
 
@@ -29,6 +33,22 @@ class _Localiser:
         h = observation.jacobians(pose, landmark)[0]
         return nu, h, observation.noise(m.range_std, m.bearing_std)
 
+    def _one_per_landmark(self, pose: np.ndarray, covariance: Callable[[], np.ndarray],
+                          measurements: list[Measurement]) -> list[Measurement]:
+        """The frame's detections of mapped landmarks, in order, keeping of a landmark detected twice only the
+        detection nearest the prediction (Mahalanobis distance at ``pose`` and ``covariance()``, asked for only then).
+        """
+        counts = Counter(m.signature for m in measurements)
+
+        def distance2(m: Measurement) -> float:
+            nu, h, q = self._linearise(pose, m)
+            return float(nu @ np.linalg.solve(h @ sigma @ h.T + q, nu))
+
+        repeated = [name for name, n in counts.items() if n > 1 and name in self.map]
+        sigma = covariance() if repeated else None
+        nearest = {name: min((m for m in measurements if m.signature == name), key=distance2) for name in repeated}
+        return [m for m in measurements if m.signature in self.map and nearest.get(m.signature, m) is m]
+
 
 class EkfLocalisation(_Localiser):
     """Pose-only EKF."""
@@ -48,13 +68,10 @@ class EkfLocalisation(_Localiser):
         self.sigma = g @ self.sigma @ g.T + v @ self.motion.control_noise(u) @ v.T
 
     def update(self, measurements: list[Measurement]) -> int:
-        """Correct with every measurement of a mapped landmark that passes the gate; returns how many did."""
+        """Correct with each mapped landmark's nearest detection that passes the gate; returns how many did."""
         used = 0
-        for m in measurements:
-            linear = self._linearise(self.mu, m)
-            if linear is None:
-                continue
-            nu, h, q = linear
+        for m in self._one_per_landmark(self.mu, lambda: self.sigma, measurements):
+            nu, h, q = self._linearise(self.mu, m)
             s = h @ self.sigma @ h.T + q
             s_inv = np.linalg.inv(s)
             if self.gate is not None and float(nu @ s_inv @ nu) > self.gate:
@@ -89,14 +106,12 @@ class EifLocalisation(_Localiser):
         self.xi = self.omega @ self._mu
 
     def update(self, measurements: list[Measurement]) -> int:
-        """Add the information of every gated measurement at once (linearised at the predicted pose)."""
+        """Add the information of each mapped landmark's nearest gated detection at once (linearised at the
+        predicted pose)."""
         mu = self._mu
         used = 0
-        for m in measurements:
-            linear = self._linearise(mu, m)
-            if linear is None:
-                continue
-            nu, h, q = linear
+        for m in self._one_per_landmark(mu, lambda: np.linalg.inv(self.omega), measurements):
+            nu, h, q = self._linearise(mu, m)
             if self.gate is not None:
                 s = h @ np.linalg.inv(self.omega) @ h.T + q
                 if float(nu @ np.linalg.solve(s, nu)) > self.gate:

@@ -191,6 +191,16 @@ def test_ekf_and_eif_agree_on_one_linear_step():
     assert np.allclose(np.linalg.inv(eif.omega), ekf.sigma, atol=1e-9)
 
 
+@pytest.mark.parametrize("filter_class", [EkfLocalisation, EifLocalisation])
+def test_a_second_box_on_the_same_pole_adds_no_information(filter_class):
+    """Two detections of one landmark in a frame: only the one nearer the prediction corrects the pose."""
+    landmarks = {"bp": (3.0, 1.0)}
+    right, second = Measurement(3.1, 0.33, "bp", 1.0, 0.05, 0.02), Measurement(3.25, 0.36, "bp", 0.6, 0.05, 0.02)
+    once, twice = (filter_class(np.zeros(3), np.eye(3) * 0.01, landmarks, OdometryModel()) for _ in range(2))
+    assert once.update([right]) == 1 and twice.update([second, right]) == 1
+    assert np.array_equal(once.pose, twice.pose)
+
+
 def test_a_slower_front_end_sees_every_nth_frame_of_the_same_walk():
     full = simulate(SimConfig(seed=3, duration_s=20))
     slow = simulate(SimConfig(seed=3, duration_s=20, front_end_hz=1.25))
