@@ -208,9 +208,11 @@ class EkfSlam:
     def _associate(self, detected: str, z: np.ndarray, q: np.ndarray, used: set[str]):
         """(landmark, verdict, its linearisation) for one detection; landmark and linearisation None when none fits."""
         if self.config.association == "class":
-            if detected in self.slots and detected not in used:
-                return detected, "match", self._linearise(detected, z, q)
-            return None, "new", None
+            if detected not in self.slots:
+                return None, "new", None
+            if detected in used:  # a second detection of that landmark in this frame: not a new landmark
+                return None, "ambiguous", None
+            return detected, "match", self._linearise(detected, z, q)
         linearised, hypotheses = {}, []
         for landmark in self.slots:
             if landmark not in used:

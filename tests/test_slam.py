@@ -134,6 +134,21 @@ def test_outlier_filter_and_gate_reject_a_false_positive(config):
     assert unfiltered.update([Measurement(3.5, -0.6, "bp", 0.9, 0.1, 0.03)]).accepted == ["bp"]
 
 
+@pytest.mark.parametrize("min_views", [1, 3])
+def test_with_known_correspondences_a_second_detection_of_a_class_never_replaces_its_landmark(min_views):
+    """A false positive of a mapped class in the frame that sees the real one must not re-initialise the landmark
+    there (it once took the class's slot and left the real landmark orphaned in the state)."""
+    slam = EkfSlam(np.zeros(3), np.eye(3) * 1e-4, OdometryModel(), SlamConfig.thesis(min_views=min_views))
+    for _ in range(min_views):
+        slam.update([Measurement(2.0, 0.1, "bp", 1.0, 0.05, 0.02)])
+    mapped = slam.landmarks["bp"]
+    for _ in range(3):
+        log = slam.update([Measurement(2.0, 0.1, "bp", 1.0, 0.05, 0.02), Measurement(3.0, -0.5, "bp", 0.5, 0.05, 0.02)])
+        assert log.accepted == ["bp"] and log.rejected == ["bp"]
+    assert len(slam.mu) == 5 and list(slam.landmarks) == ["bp"]
+    assert np.allclose(slam.landmarks["bp"], mapped, atol=0.01)
+
+
 @pytest.mark.parametrize("n", [3, 5])
 def test_minimal_view_delays_initialisation_by_exactly_n_sightings(n):
     slam = EkfSlam(np.zeros(3), np.eye(3) * 1e-4, OdometryModel(), SlamConfig.thesis(min_views=n))
