@@ -7,8 +7,8 @@ O(n^2) for the covariance (Joseph form).
 
 Defaults are the robust configuration: self-calibrated odometry, class-tolerant nearest-neighbour association
 inside a Mahalanobis gate, and landmarks initialised only from three agreeing sightings, never within half a metre
-of a mapped one. The thesis's variants
-(2024 thesis, 3.2) stay available for the comparison tables through :meth:`SlamConfig.thesis`:
+of a mapped one. The thesis's variants (2024 thesis, 3.2) stay available for the comparison tables through
+:meth:`SlamConfig.thesis`:
 - outlier filter: drop a measurement whose range differs more than 0.4 m or bearing more than pi/3 from prediction;
 - minimal view: a landmark enters the map only after ``min_views`` sightings that agree in position;
 - FEJ-EKF (Huang, Mourikis and Roumeliotis 2009): the motion Jacobian uses the displacement between *predicted*

@@ -39,15 +39,18 @@ class _Localiser:
         detection nearest the prediction (Mahalanobis distance at ``pose`` and ``covariance()``, asked for only then).
         """
         counts = Counter(m.signature for m in measurements)
+        repeated = [name for name, n in counts.items() if n > 1 and name in self.map]
+        mapped = [m for m in measurements if m.signature in self.map]
+        if not repeated:
+            return mapped
+        sigma = covariance()
 
         def distance2(m: Measurement) -> float:
             nu, h, q = self._linearise(pose, m)
             return float(nu @ np.linalg.solve(h @ sigma @ h.T + q, nu))
 
-        repeated = [name for name, n in counts.items() if n > 1 and name in self.map]
-        sigma = covariance() if repeated else None
-        nearest = {name: min((m for m in measurements if m.signature == name), key=distance2) for name in repeated}
-        return [m for m in measurements if m.signature in self.map and nearest.get(m.signature, m) is m]
+        nearest = {name: min((m for m in mapped if m.signature == name), key=distance2) for name in repeated}
+        return [m for m in mapped if nearest.get(m.signature, m) is m]
 
 
 class EkfLocalisation(_Localiser):
