@@ -83,6 +83,8 @@ class SlamConfig:
             parts.append("odometry scales")
         if self.association == "nearest":
             parts.append("NN association")
+            if self.min_separation_m:
+                parts.append(f"separation {self.min_separation_m:g} m")
         if self.outlier_filter:
             parts.append("outlier filter")
         if self.gate:

@@ -21,7 +21,7 @@ def test_slam_command_writes_metrics_map_path_plots_and_comparison(tmp_path, cap
     metrics = json.loads((out / "metrics.json").read_text())
     for key in ("robot_error", "landmark_error"):
         assert set(metrics[key]) >= {"mean", "std", "rmse"}
-    assert metrics["label"] == "FEJ-EKF + odometry scales + NN association + gate 9.21 + min view 3"
+    assert metrics["label"] == "FEJ-EKF + odometry scales + NN association + separation 0.5 m + gate 9.21 + min view 3"
     assert {"nees", "nis", "counts", "time_per_step_us", "phantoms", "landmarks_missing"} <= set(metrics)
     rows = json.loads((out / "comparison.json").read_text())
     assert [row["backend"] for row in rows] == [*BACKENDS, REFERENCE_ROW] and all(row["seeds"] == 2 for row in rows)
