@@ -29,7 +29,7 @@ def make_console() -> Console:
 
 
 def show_progress(items: Iterable[T], desc: str, unit: str, total: int | None = None, enabled: bool = True,
-             leave: bool = True) -> Iterator[T]:
+                  leave: bool = True) -> Iterator[T]:
     """``items`` with a tqdm bar on stderr: live on a terminal (``leave=False`` clears it at the end); into a file or
     a pipe one whole line every 30 seconds and one at the end, always kept, where tqdm's carriage returns would pile
     every update into one line of the log."""
