@@ -59,11 +59,16 @@ def test_shipped_onnx_finds_a_rendered_pole_without_torch(code, tmp_path):
 
 
 
-def _readme_robot_loop() -> str:
-    """The README's robot loop (the python block that builds ``naoslam.LandmarkDetector()``)."""
+def _readme_python_block(containing: str) -> str:
+    """The README's first python block that contains ``containing``."""
     readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
     blocks = [block.split("```", 1)[0] for block in readme.split("```python\n")[1:]]
-    return next(block for block in blocks if "naoslam.LandmarkDetector()" in block)
+    return next(block for block in blocks if containing in block)
+
+
+def _readme_robot_loop() -> str:
+    """The README's robot loop (the python block that builds ``naoslam.LandmarkDetector()``)."""
+    return _readme_python_block("naoslam.LandmarkDetector()")
 
 
 def test_readme_robot_loop_measures_a_rendered_pole(tmp_path):
@@ -75,6 +80,24 @@ def test_readme_robot_loop_measures_a_rendered_pole(tmp_path):
     assert name == "pg"
     assert float(range_m) == pytest.approx(2.0, rel=0.15)
     assert abs(float(bearing_rad)) < 0.05
+
+def test_readme_slam_loop_maps_the_poles_of_a_rendered_walk():
+    """The README's SLAM loop, fed a rendered 20 s walk as a robot would feed it: the poles it passes are mapped where
+    they stand (after aligning the start frame to the field), and nothing else."""
+    from detector.synth.walk import frame_steps, render_walk, walk_camera_poses
+    from naoslam.runner import score_map
+    from naoslam.sim import SimConfig, simulate
+
+    walk = simulate(SimConfig(duration_s=20, seed=0))
+    frames = render_walk(walk, seed=0, workers=2, progress=False)
+    odometry = [walk.steps[i].odometry_pose for i in frame_steps(walk)]
+    cameras = [(c.z, c.pitch, c.roll) for c in walk_camera_poses(walk, seed=0)]
+    namespace = {"robot_frames": lambda: zip(odometry, frames, cameras)}
+    exec(_readme_python_block("slam.update("), namespace)
+    scored = score_map(namespace["slam"].landmarks, walk.landmarks, align=True)
+    assert scored["landmark_error"]["mapped"] >= 3 and not scored["phantoms"]
+    assert scored["landmark_error"]["mean"] < 0.25
+
 
 def test_shipped_onnx_carries_calibration_and_its_threshold():
     from naoslam.detector import LandmarkDetector
