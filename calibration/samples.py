@@ -61,15 +61,6 @@ def open_ranged(data: Path, truth_csv: Path | None = None, progress: bool = True
 MEASURE_CONF = 0.25
 
 
-def collect_samples(data: Path, model: Path | None = None, truth_csv: Path | None = None,
-                    conf: float = MEASURE_CONF, progress: bool = True,
-                    hfov_deg: float = NAO_HFOV_DEG) -> list[SizeSample]:
-    """Measure every pole of the dataset at ``data`` with a true range (:func:`measure_samples`), by ``model``'s
-    masks when given."""
-    detector = LandmarkDetector(model, conf=conf) if model else None
-    return measure_samples(open_ranged(data, truth_csv, progress), detector, progress, hfov_deg)
-
-
 def measure_samples(ranged: RangedDataset, detector: LandmarkDetector | None = None, progress: bool = True,
                     hfov_deg: float = NAO_HFOV_DEG) -> list[SizeSample]:
     """Measure every pole with a true range: its labelled mask, or the ``detector``'s best same-class detection (and

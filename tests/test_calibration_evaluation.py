@@ -11,7 +11,7 @@ import pytest
 
 from calibration.fit import WALK_RELATIVE_STD, calibrate, fit_power_law
 from calibration.run import load_calibration
-from calibration.samples import collect_samples
+from calibration.samples import measure_samples, open_ranged
 from detector.cli import main
 from detector.datasets import load_dataset
 from detector.datasets.truth import load_truth
@@ -42,7 +42,7 @@ def test_fit_recovers_a_known_power_law():
 
 
 def test_calibration_shots_recover_the_camera_law(calibration_shots):
-    calibration, report = calibrate(collect_samples(calibration_shots, progress=False))
+    calibration, report = calibrate(measure_samples(open_ranged(calibration_shots, progress=False), progress=False))
     # A pinhole camera makes pixel size inversely proportional to range: exponents near -1.
     assert calibration.width_law.b == pytest.approx(-1.0, abs=0.06)
     assert calibration.height_law.b == pytest.approx(-1.0, abs=0.06)
@@ -65,7 +65,7 @@ def test_calibration_shots_recover_the_camera_law(calibration_shots):
 
 
 def test_a_walks_sightings_set_the_noise_the_filter_is_told(calibration_shots):
-    shots = collect_samples(calibration_shots, progress=False)
+    shots = measure_samples(open_ranged(calibration_shots, progress=False), progress=False)
     plain, _ = calibrate(shots)
     rng = np.random.default_rng(0)
     # A walk whose masks read 15 % off in width and 4 % in height (s.d.), where the still shots read 1-4 %.
@@ -116,8 +116,8 @@ def test_the_minimal_annotations_json_a_team_writes_gives_the_same_sizes_and_ran
     minimal = {"images": {name: {"landmarks": [{"cls": lm["cls"], "range_m": lm["range_m"]}
                                                for lm in entry["landmarks"]]} for name, entry in full.items()}}
     (dataset_copy / "annotations.json").write_text(json.dumps(minimal))
-    expected = collect_samples(synth_dataset, progress=False)
-    written = collect_samples(dataset_copy, progress=False)
+    expected = measure_samples(open_ranged(synth_dataset, progress=False), progress=False)
+    written = measure_samples(open_ranged(dataset_copy, progress=False), progress=False)
     assert len(written) == len(expected) >= 10
     assert [(s.image, s.cls, s.range_m, s.width_px, s.height_px) for s in written] == \
         [(s.image, s.cls, s.range_m, s.width_px, s.height_px) for s in expected]
@@ -331,7 +331,7 @@ def test_evaluate_writes_metrics_plots_and_overlays(synth_dataset, tmp_path):
 
 
 def test_real_poles_calibration_images_measure(real_poles):
-    samples = collect_samples(real_poles, progress=False)
+    samples = measure_samples(open_ranged(real_poles, progress=False), progress=False)
     assert len(samples) == 6 and all(s.partial for s in samples) and all(s.image_width == 1280 for s in samples)
 
 
