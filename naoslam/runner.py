@@ -127,7 +127,8 @@ def score_map(landmarks: dict[str, np.ndarray], truth: dict[str, tuple[float, fl
 
 def run_slam(sequence: Sequence, config: SlamConfig = SlamConfig(),
              pose_std: tuple[float, float, float] = (0.01, 0.01, 0.01)) -> SlamResult:
-    """Run one back end over the sequence, recording the pose after every event and the time each step took."""
+    """Run one back end over the sequence, recording the pose after every event and the time each step took.
+    Every frame is folded in, one without detections too, as a robot's loop does (it ages the pending candidates)."""
     slam = EkfSlam(sequence.start, np.diag(np.square(pose_std)), sequence.motion, config)
     times, poses, truth, odometry, nees, nis = [], [], [], [], [], []
     predict_ns, update_ns = [], []
@@ -137,7 +138,7 @@ def run_slam(sequence: Sequence, config: SlamConfig = SlamConfig(),
             start = time.perf_counter_ns()
             slam.predict(event.control)
             predict_ns.append(time.perf_counter_ns() - start)
-        if event.measurements:
+        if event.measurements is not None:
             start = time.perf_counter_ns()
             log = slam.update(event.measurements)
             update_ns.append(time.perf_counter_ns() - start)

@@ -16,7 +16,7 @@ from naoslam.logs import load_optitrack, load_utias
 from naoslam.measurement import Measurement
 from naoslam.metrics import align_se2
 from naoslam.motion import OdometryModel, VelocityModel, wrap
-from naoslam.runner import Event, merge_frames, run_slam, walk_sequence
+from naoslam.runner import Event, Sequence, merge_frames, run_slam, walk_sequence
 from naoslam.sim import SimConfig, simulate
 
 from tests.conftest import SHARED
@@ -234,6 +234,21 @@ def test_frames_merge_in_time_order_with_the_offset():
     merged = merge_frames(controls, frames, time_offset_s=0.15)
     assert [(e.t, e.measurements is not None) for e in merged] == [
         (0.0, False), (0.1, False), (0.15, True), (0.2, False), (0.25, True), (0.3, False)]
+
+
+def test_the_runner_folds_in_empty_frames_as_a_robot_loop_does():
+    """Two sightings, then 30 frames without detections: the candidate has expired (patience 25 frames) when the
+    third sighting comes, in the runner as in a loop that calls ``update`` on every frame."""
+    sighting = [Measurement(2.0, 0.1, "py", 1.0, 0.05, 0.02)]
+    frames = [sighting, sighting] + [[]] * 30 + [sighting]
+    sequence = Sequence([Event(0.2 * i, np.zeros(3), m) for i, m in enumerate(frames)], np.zeros(3), OdometryModel(),
+                        {"py": (2.0, 0.2)})
+    slam = EkfSlam(np.zeros(3), np.eye(3) * 1e-4, OdometryModel(), SlamConfig())
+    for measurements in frames:
+        slam.predict(np.zeros(3))
+        slam.update(measurements)
+    assert not slam.landmarks and not run_slam(sequence, SlamConfig()).landmarks
+    assert run_slam(replace(sequence, events=sequence.events[:2] + sequence.events[-1:]), SlamConfig()).landmarks
 
 
 def test_se2_alignment_undoes_a_rigid_motion():
