@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import csv
 import math
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -282,6 +283,10 @@ def print_comparison(rows: list[dict], title: str) -> None:
     make_console().print(table)
 
 
+#: A map's title wraps at this many characters, so the back end's long label stays inside the 7-inch figure.
+MAP_TITLE_CHARS = 90
+
+
 def plot_map(result: SlamResult, png: Path, title: str) -> Path:
     """True and estimated landmarks and paths (and odometry), like the thesis's map figures."""
     from detector.figures import plt, save_figure
@@ -305,7 +310,7 @@ def plot_map(result: SlamResult, png: Path, title: str) -> Path:
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    ax.set_title(f"{result.label} - {title}", fontsize=9)
+    ax.set_title(textwrap.fill(f"{result.label} - {title}", MAP_TITLE_CHARS), fontsize=9)
     ax.legend(fontsize=7, loc="best")
     ax.grid(alpha=0.3)
     return save_figure(fig, png)
