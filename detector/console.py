@@ -1,10 +1,13 @@
 """What a command shows on the terminal: the one rich console for tables and messages, and its progress bars."""
 from __future__ import annotations
 
+import math
 import os
 import sys
-from collections.abc import Iterable, Iterator
-from typing import TypeVar
+import time
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
+from typing import TextIO, TypeVar
 
 from rich.console import Console
 from tqdm import tqdm
@@ -37,3 +40,66 @@ def show_progress(items: Iterable[T], desc: str, unit: str, total: int | None = 
         return iter(tqdm(items, desc=desc, unit=unit, total=total, disable=not enabled, leave=leave))
     return iter(tqdm(items, desc=desc, unit=unit, total=total, disable=not enabled, ascii=True,
                      mininterval=LOG_PROGRESS_INTERVAL_S, bar_format="{l_bar}{bar}{r_bar}\n"))
+
+
+class LogBarStream:
+    """Stands in for stdout while Ultralytics trains into a file or a pipe (a background run's log, ``| tee``).
+
+    Ultralytics' progress bars hand every redraw to their stream's ``progress(bar, frame)`` when it has one (the
+    hook its own ``ConsoleLogger`` uses), and ``progress(bar, "")`` when the bar closes. Here a bar writes one whole
+    line every 30 seconds and its last frame when it closes, where each redraw (ten a second) would otherwise be
+    appended to one ever longer line of the log. Everything else passes through unchanged.
+    """
+
+    def __init__(self, stream: TextIO, interval_s: float = LOG_PROGRESS_INTERVAL_S,
+                 clock: Callable[[], float] = time.monotonic):
+        self.stream = stream
+        self.interval_s = interval_s
+        self.clock = clock
+        self._shown_at: dict[int, float] = {}
+        self._unshown: dict[int, str] = {}
+        self._closed_frame: str | None = None
+
+    def progress(self, bar: int, frame: str) -> None:
+        """One redraw of ``bar``; an empty frame closes it."""
+        frame = frame.rsplit("\r", 1)[-1].replace("\x1b[K", "")
+        if not frame:
+            self._shown_at.pop(bar, None)
+            self._closed_frame = self._unshown.pop(bar, "")
+            return
+        now = self.clock()
+        if now - self._shown_at.get(bar, -math.inf) >= self.interval_s:
+            self.stream.write(frame + "\n")
+            self._shown_at[bar] = now
+            self._unshown.pop(bar, None)
+        else:
+            self._unshown[bar] = frame
+
+    def write(self, text: str) -> int:
+        """Pass ``text`` on; right after a bar closed, its ending (a newline, or a clear for a bar not kept) ends the
+        bar's last frame instead."""
+        closed, self._closed_frame = self._closed_frame, None
+        if closed is not None and text in ("\n", "\r\x1b[K"):
+            if closed and text == "\n":
+                self.stream.write(closed + "\n")
+            return len(text)
+        if closed:
+            self.stream.write(closed + "\n")
+        return self.stream.write(text)
+
+    def __getattr__(self, name: str):
+        return getattr(self.stream, name)
+
+
+@contextmanager
+def bars_as_log_lines() -> Iterator[None]:
+    """While inside, Ultralytics' progress bars write whole lines every 30 s when stdout is not a terminal."""
+    if sys.stdout.isatty():
+        yield
+        return
+    original = sys.stdout
+    sys.stdout = LogBarStream(original)
+    try:
+        yield
+    finally:
+        sys.stdout = original

@@ -18,6 +18,7 @@ from ultralytics.cfg import check_cfg, smart_value
 from ultralytics.models.yolo.segment import SegmentationTrainer
 from ultralytics.utils import DEFAULT_CFG, DEFAULT_CFG_DICT, torch_utils
 
+from detector.console import bars_as_log_lines
 from detector.cpu_threads import ThreadTuner
 from detector.datasets.intake import open_dataset, training_view
 from detector.training_curves import best_epoch, plot_training_curves
@@ -150,10 +151,12 @@ def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | 
 
 
 def _train(model: YOLO, tuner: ThreadTuner | None, **options) -> None:
-    """``model.train(**options)``, with the thread tuner watching every batch when there is one."""
+    """``model.train(**options)``, with the thread tuner watching every batch when there is one and progress bars
+    written as whole lines into a log."""
     if tuner is not None:
         model.add_callback("on_train_batch_end", tuner)
-    model.train(**options)
+    with bars_as_log_lines():
+        model.train(**options)
 
 
 def _clear_unfinished_run(out: Path) -> None:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import shutil
 from pathlib import Path
@@ -186,6 +187,29 @@ def test_a_logged_progress_bar_writes_whole_lines(capsys):
     assert len(lines) == 2  # the start and the end, each a line of its own: nothing in between inside 30 seconds
     assert lines[0].startswith("rendering:   0%") and lines[1].startswith("rendering: 100%")
     assert "500/500" in lines[1] and "\r" not in "".join(lines)
+
+
+def test_an_ultralytics_bar_in_a_log_writes_a_line_every_30_seconds_and_its_last_frame():
+    """Ultralytics redraws a bar ten times a second; into a log each redraw would lengthen one line."""
+    from ultralytics.utils.tqdm import TQDM
+
+    from detector.console import LogBarStream
+
+    now = [0.0]
+    log = io.StringIO()
+    stream = LogBarStream(log, clock=lambda: now[0])
+    bar = TQDM(total=100, desc="epoch 1/3", file=stream, mininterval=0.0)
+    for _ in range(100):
+        now[0] += 1.0  # one batch a second: lines at 0, 30, 60 and 90 s, then the last frame at close
+        bar.update(1)
+    bar.close()
+    stream.write("validating\n")
+    TQDM(range(5), desc="val", file=stream, leave=False, mininterval=0.0).close()  # a cleared bar: first frame only
+    lines = log.getvalue().split("\n")
+    assert "\r" not in log.getvalue() and "\x1b" not in log.getvalue()
+    progress = [line.split()[2] for line in lines if line.startswith("epoch 1/3:")]
+    assert progress == ["0%", "30%", "60%", "90%", "100%"]
+    assert lines[-3:] == ["validating", lines[-2], ""] and lines[-2].startswith("val: 0%")
 
 
 def test_require_clean_lists_problems(dataset_copy):
