@@ -91,10 +91,16 @@ class LogBarStream:
         return getattr(self.stream, name)
 
 
+def redraws_in_place(stream: TextIO) -> bool:
+    """True for a terminal and for a notebook's output area: both draw a carriage return over the line."""
+    return stream.isatty() or type(stream).__module__.startswith("ipykernel")
+
+
 @contextmanager
 def bars_as_log_lines() -> Iterator[None]:
-    """While inside, Ultralytics' progress bars write whole lines every 30 s when stdout is not a terminal."""
-    if sys.stdout.isatty():
+    """While inside, Ultralytics' progress bars write whole lines every 30 s into a file or a pipe (a terminal or
+    a notebook keeps its live bar)."""
+    if redraws_in_place(sys.stdout):
         yield
         return
     original = sys.stdout

@@ -5,6 +5,7 @@ import hashlib
 import io
 import json
 import shutil
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -210,6 +211,21 @@ def test_an_ultralytics_bar_in_a_log_writes_a_line_every_30_seconds_and_its_last
     progress = [line.split()[2] for line in lines if line.startswith("epoch 1/3:")]
     assert progress == ["0%", "30%", "60%", "90%", "100%"]
     assert lines[-3:] == ["validating", lines[-2], ""] and lines[-2].startswith("val: 0%")
+
+
+@pytest.mark.parametrize("interactive", [True, False])
+def test_training_bars_become_log_lines_only_where_nothing_redraws(monkeypatch, interactive):
+    from detector.console import LogBarStream, bars_as_log_lines
+
+    class Stream(io.StringIO):
+        def isatty(self) -> bool:
+            return interactive
+
+    stdout = Stream()
+    monkeypatch.setattr("sys.stdout", stdout)
+    with bars_as_log_lines():
+        assert isinstance(sys.stdout, LogBarStream) != interactive
+    assert sys.stdout is stdout
 
 
 def test_require_clean_lists_problems(dataset_copy):
