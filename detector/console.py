@@ -31,12 +31,17 @@ def make_console() -> Console:
     return console
 
 
+def redraws_in_place(stream: TextIO) -> bool:
+    """True for a terminal and for a notebook's output area: both draw a carriage return over the line."""
+    return stream.isatty() or type(stream).__module__.startswith("ipykernel")
+
+
 def show_progress(items: Iterable[T], desc: str, unit: str, total: int | None = None, enabled: bool = True,
                   leave: bool = True) -> Iterator[T]:
-    """``items`` with a tqdm bar on stderr: live on a terminal (``leave=False`` clears it at the end); into a file or
-    a pipe one whole line every 30 seconds and one at the end, always kept, where tqdm's carriage returns would pile
-    every update into one line of the log."""
-    if sys.stderr.isatty():
+    """``items`` with a tqdm bar on stderr: live on a terminal or in a notebook (``leave=False`` clears it at the end);
+    into a file or a pipe one whole line every 30 seconds and one at the end, always kept, where tqdm's carriage
+    returns would pile every update into one line of the log."""
+    if redraws_in_place(sys.stderr):
         return iter(tqdm(items, desc=desc, unit=unit, total=total, disable=not enabled, leave=leave))
     return iter(tqdm(items, desc=desc, unit=unit, total=total, disable=not enabled, ascii=True,
                      mininterval=LOG_PROGRESS_INTERVAL_S, bar_format="{l_bar}{bar}{r_bar}\n"))
@@ -89,11 +94,6 @@ class LogBarStream:
 
     def __getattr__(self, name: str):
         return getattr(self.stream, name)
-
-
-def redraws_in_place(stream: TextIO) -> bool:
-    """True for a terminal and for a notebook's output area: both draw a carriage return over the line."""
-    return stream.isatty() or type(stream).__module__.startswith("ipykernel")
 
 
 @contextmanager
