@@ -9,14 +9,14 @@ from __future__ import annotations
 import json
 import os
 import shutil
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from detector.console import show_progress
-from detector.datasets.io import IMAGE_SUFFIXES, DatasetWriter, check_output_folder
+from detector.datasets.io import IMAGE_SUFFIXES, DatasetWriter, check_output_folder, require_decodable
 from detector.datasets.model import Instance
 from detector.datasets.polygons import mask_to_polygon
 from detector.preview import CLASS_BGR, contact_sheet
@@ -34,13 +34,16 @@ SHEET_TILES = 12
 
 
 def frames_in(source: Path) -> tuple[int, float, Iterator[tuple[str, np.ndarray]]]:
-    """(frame count, frames per second, (name, BGR frame) in order) of a folder of images or a video file."""
+    """(frame count, frames per second, (name, BGR frame) in order) of a folder of images or a video file.
+
+    A folder's frames are all checked to decode first, so a bad one is refused before any model runs."""
     source = Path(source)
     if source.is_dir():
         paths = sorted(p for p in source.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
         if not paths:
             raise ValueError(f"{source}: no images ({', '.join(sorted(IMAGE_SUFFIXES))}) in it")
-        return len(paths), FOLDER_FPS, (_read(p) for p in paths)
+        require_decodable(paths)
+        return len(paths), FOLDER_FPS, ((p.name, cv2.imread(str(p), cv2.IMREAD_COLOR)) for p in paths)
     capture = cv2.VideoCapture(str(source))
     count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) if capture.isOpened() else 0
     if count <= 0:
@@ -60,13 +63,6 @@ def frames_in(source: Path) -> tuple[int, float, Iterator[tuple[str, np.ndarray]
     return count, fps, decode()
 
 
-def _read(path: Path) -> tuple[str, np.ndarray]:
-    frame = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if frame is None:
-        raise ValueError(f"{path}: cannot be decoded as an image - remove it or re-save it")
-    return path.name, frame
-
-
 def detections_to_instances(detections: list[Detection], frame_hw: tuple[int, int]) -> list[Instance]:
     """Each detection's mask as a simplified, normalised outline (detections without an outline are skipped)."""
     h, w = frame_hw
@@ -80,39 +76,51 @@ def detections_to_instances(detections: list[Detection], frame_hw: tuple[int, in
 
 def prelabel(images: Path, out: Path, model: Path | None = None, conf: float | None = None, fmt: str = "yolov8",
              force: bool = False, progress: bool = True) -> dict:
-    """Write pre-annotations for every frame in ``images`` to ``out`` (all in the train split); returns counts."""
+    """Write pre-annotations for every frame in ``images`` to ``out`` (all in the train split); returns counts.
+
+    Frames stream from the source through the model into the writer, one at a time, so a long recording needs the
+    memory of one frame, and a bad frame or an existing ``out`` is refused before the model runs."""
     if fmt not in ("yolov8", "coco"):
         raise ValueError(f"--format {fmt!r}: choose yolov8 or coco")
     detector = LandmarkDetector(model, conf=conf)
     count, _, frames = frames_in(images)
-    labelled: list[tuple[str, np.ndarray, list[Instance]]] = []
-    for name, frame in show_progress(frames, "pre-labelling", "img", total=count, enabled=progress):
-        labelled.append((name, frame, detections_to_instances(detector(frame), frame.shape[:2])))
-    source = {name: images / name for name, _, _ in labelled} if Path(images).is_dir() else {}
+    folder = Path(images) if Path(images).is_dir() else None
+    counts = {"frames": 0, "poles": 0, "empty": 0}
+
+    def labelled() -> Iterator[tuple[str, np.ndarray, list[Instance]]]:
+        for name, frame in show_progress(frames, "pre-labelling", "img", total=count, enabled=progress):
+            instances = detections_to_instances(detector(frame), frame.shape[:2])
+            counts["frames"] += 1
+            counts["poles"] += len(instances)
+            counts["empty"] += not instances
+            yield name, frame, instances
+
+    protect = Path(images).resolve()
     if fmt == "yolov8":
-        with DatasetWriter(out, force=force, protect=(Path(images).resolve(),)) as writer:
-            for name, frame, instances in labelled:
-                writer.add("train", name, source.get(name) or _jpeg(frame), instances)
+        with DatasetWriter(out, force=force, protect=(protect,)) as writer:
+            for name, frame, instances in labelled():
+                writer.add("train", name, folder / name if folder else _jpeg(frame), instances)
     else:
-        _write_coco(out, labelled, source, force, protect=Path(images).resolve())
-    poles = sum(len(i) for _, _, i in labelled)
-    return {"frames": len(labelled), "poles": poles, "empty": sum(1 for _, _, i in labelled if not i),
-            "conf": detector.conf, "model": str(detector.path), "format": fmt, "out": str(Path(out).resolve())}
+        _write_coco(out, labelled(), folder, force, protect)
+    return {**counts, "conf": detector.conf, "model": str(detector.path), "format": fmt,
+            "out": str(Path(out).resolve())}
 
 
 def _jpeg(frame: np.ndarray) -> bytes:
     return cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, 95])[1].tobytes()
 
 
-def _write_coco(out: Path, labelled, source: dict[str, Path], force: bool, protect: Path) -> None:
-    """Roboflow's COCO layout: ``train/`` holding the images and ``_annotations.coco.json`` (pixel polygons)."""
+def _write_coco(out: Path, labelled: Iterable[tuple[str, np.ndarray, list[Instance]]], folder: Path | None,
+                force: bool, protect: Path) -> None:
+    """Roboflow's COCO layout: ``train/`` holding the images (copied from ``folder`` when the frames came from one)
+    and ``_annotations.coco.json`` (pixel polygons)."""
     categories = [{"id": i, "name": code, "supercategory": "poles"} for i, code in enumerate(CLASSES)]
     images, annotations = [], []
     with atomic_folder(check_output_folder(out, force, (protect,))) as tmp:
         (tmp / "train").mkdir()
         for index, (name, frame, instances) in enumerate(labelled):
             target = tmp / "train" / name
-            shutil.copyfile(source[name], target) if name in source else target.write_bytes(_jpeg(frame))
+            shutil.copyfile(folder / name, target) if folder else target.write_bytes(_jpeg(frame))
             h, w = frame.shape[:2]
             images.append({"id": index, "file_name": name, "width": w, "height": h})
             for inst in instances:

@@ -14,6 +14,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from detector.datasets.io import require_decodable
 from naoslam.atomic import atomic_path, write_json
 from naoslam.camera import CameraPose
 from naoslam.ekf_slam import SlamConfig
@@ -157,12 +158,11 @@ def recorded_sequence(frames_dir: Path, odometry_csv: Path, front_end: FrontEnd,
                              f"{rows[0][0]:g}..{rows[-1][0]:g} s in {odometry_csv} - the frames and the odometry "
                              "must come from one recording on one clock")
         stamped.append((t, path))
+    require_decodable([path for _, path in stamped])
     measure = front_end.measurer()
     frames = []
     for t, path in sorted(stamped):
         image = cv2.imread(str(path))
-        if image is None:
-            raise ValueError(f"{path}: cannot be decoded as an image")
         pose = poses[int(np.argmin(np.abs(times - t - time_offset_s)))] if poses and camera_pose else None
         frames.append(Event(t, measurements=measure(image, pose)))
     events = merge_frames(controls, frames, time_offset_s)

@@ -257,6 +257,13 @@ def _odometry(tmp: Path, rows: str, frame: str | None = None) -> tuple[list[str]
             "--frontend", "colour-filter", "--out", str(tmp / "out")], folder, frame or "odo.csv"
 
 
+def _undecodable_frame(tmp: Path) -> tuple[list[str], Path, str]:
+    """A recording whose one frame is the first bytes of a JPEG the robot never finished writing."""
+    argv, folder, frame = _odometry(tmp, "t,x,y,theta\n0,0,0,0\n1,1,0,0\n", frame="0.5.jpg")
+    (folder / "frames" / frame).write_bytes(b"\xff\xd8\xff")
+    return argv, folder, frame
+
+
 def _swap_odometry_rows(folder: Path) -> None:
     path = folder / "Odometry.dat"
     lines = path.read_text().splitlines()
@@ -322,6 +329,7 @@ OTHER_CASES = [
                                                                            frame="50.0.jpg")),
     _plain("slam: frame not named by its time", lambda tmp, d: _odometry(tmp, "t,x,y,theta\n0,0,0,0\n1,1,0,0\n",
                                                                          frame="left.jpg")),
+    _plain("slam: a frame that cannot be decoded", lambda tmp, d: _undecodable_frame(tmp)),
     _plain("slam: --confusion-rate above 1", lambda tmp, d: (["slam", "--sim", "square", "--confusion-rate", "2",
                                                               "--out", str(tmp / "out")], tmp, "--confusion-rate")),
     _plain("slam: negative --lookalikes", lambda tmp, d: (["slam", "--sim", "square", "--lookalikes", "-1",

@@ -52,6 +52,43 @@ def test_prelabel_refuses_an_output_inside_the_frames(frames, capsys):
     assert not (frames / "labels").exists()
 
 
+@pytest.fixture
+def model_calls(monkeypatch) -> list[int]:
+    """Counts the frames the pole model is run on."""
+    from naoslam.detector import LandmarkDetector
+
+    calls: list[int] = []
+    run = LandmarkDetector.__call__
+    monkeypatch.setattr(LandmarkDetector, "__call__", lambda self, frame: calls.append(1) or run(self, frame))
+    return calls
+
+
+@pytest.mark.parametrize("command", [["--images", "{frames}", "--out", "{out}"],
+                                     ["--images", "{frames}", "--out", "{out}", "--format", "coco"],
+                                     ["--video", "{frames}", "--out", "{out}.mp4"]])
+def test_a_bad_frame_is_refused_before_the_model_runs(command, frames, tmp_path, model_calls, capsys):
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for path in frames.glob("*.jpg"):
+        (folder / path.name).write_bytes(path.read_bytes())
+    (folder / "50_cut.jpg").write_bytes(b"\xff\xd8\xff")  # the last frame a robot wrote before it powered off
+    (folder / "51_note.png").write_text("not an image")
+    args = [a.format(frames=folder, out=tmp_path / "out") for a in command]
+    assert main(["predict", *args]) == 2
+    assert f"{folder / '50_cut.jpg'} (and 1 more): cannot be decoded" in capsys.readouterr().err
+    assert model_calls == []
+    assert list(tmp_path.iterdir()) == [folder]
+
+
+def test_prelabel_refuses_an_existing_output_before_the_model_runs(frames, tmp_path, model_calls, capsys):
+    out = tmp_path / "prelabels"
+    out.mkdir()
+    (out / "yesterday.txt").write_text("the last batch's notes")
+    assert main(["predict", "--images", str(frames), "--out", str(out)]) == 2
+    assert "--force" in capsys.readouterr().err
+    assert model_calls == []
+
+
 def test_overlay_video_has_every_frame_at_the_input_size(frames, tmp_path):
     video = tmp_path / "run.mp4"
     assert main(["predict", "--video", str(frames), "--out", str(video)]) == 0

@@ -7,6 +7,7 @@ import shutil
 from pathlib import Path
 from types import TracebackType
 
+import cv2
 import yaml
 
 from detector.datasets.labels import format_label_line, parse_label_file
@@ -18,6 +19,15 @@ from naoslam.landmarks import CLASSES
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".webp", ".tif", ".tiff"}
 #: data.yaml key -> split folder name.
 YAML_SPLIT_KEYS = {"train": "train", "val": "valid", "test": "test"}
+
+
+def require_decodable(paths: list[Path]) -> None:
+    """Refuse a list of frames before a long run over them starts if any cannot be decoded, naming the first and
+    counting the rest, so a bad frame late in a recording costs a few seconds of decoding, not the run's work."""
+    bad = [path for path in paths if cv2.imread(str(path), cv2.IMREAD_COLOR) is None]
+    if bad:
+        more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
+        raise ValueError(f"{bad[0]}{more}: cannot be decoded as an image - remove it or re-save it; nothing was written")
 
 
 def load_dataset(path: str | Path, renames: dict[str, str] | None = None) -> Dataset:
