@@ -82,7 +82,7 @@ pole-model: $(STAMP)
 		--model $(FINAL)/poles-yolov8n-seg.onnx --force \
 		$(foreach walk,$(WALKS),$(foreach seed,$(WALK_SEEDS),--noise-data runs/walknoise/$(walk)-$(seed)))
 	$(BIN)/poles evaluate --model $(FINAL)/poles-yolov8n-seg.onnx --data runs/pole-tune-all --split valid --conf 0.5 \
-		--calibration $(FINAL)/calibration.json --out $(FINAL)/tune
+		--calibration $(FINAL)/calibration.json --out $(FINAL)/tune --force
 	$(BIN)/python -m export.ship --weights $(FINAL)/weights/best.pt --onnx $(FINAL)/poles-yolov8n-seg.onnx \
 		--calibration $(FINAL)/calibration.json \
 		--conf $$($(BIN)/python -c "import json; print(json.load(open('$(FINAL)/tune/metrics.json'))['best_f1_conf'])")

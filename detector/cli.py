@@ -54,6 +54,12 @@ def _add_input_width_argument(parser: argparse.ArgumentParser, applies: str = ""
                                                   "model exported with --dynamic; default: its own)")
 
 
+def _existing(*paths: Path | None) -> tuple[Path, ...]:
+    """The given paths that exist: the inputs an output folder must never overlap (`shipped` and the like are not
+    paths)."""
+    return tuple(path for path in paths if path is not None and path.exists())
+
+
 def _one_dataset(args: argparse.Namespace) -> Path:
     """The dataset given as DATA or ``--data``, whichever was given (refused when neither or two differ)."""
     given = {path for path in (args.data, args.data_option) if path is not None}
@@ -196,6 +202,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                            "(default: the one embedded in the ONNX model)")
     _add_input_width_argument(evaluate, "a .pt checkpoint at 640 unless given; ONNX: ")
     evaluate.add_argument("--out", type=Path, required=True, help="folder for metrics.json, plots and FP/FN overlays")
+    evaluate.add_argument("--force", action="store_true", help="replace --out if it holds files")
 
     slam = sub.add_parser("slam", help="run an EKF SLAM back end on a simulated walk, a UTIAS log or a recording")
     source = slam.add_mutually_exclusive_group(required=True)
@@ -245,7 +252,8 @@ def build_parser() -> argparse.ArgumentParser:
     slam.add_argument("--compare", type=int, metavar="SEEDS",
                       help="also run every back end (and, on a simulated walk, the GTSAM smoother reference) on "
                            "SEEDS seeds and print the comparison table")
-    slam.add_argument("--out", type=Path, required=True)
+    slam.add_argument("--out", type=Path, required=True, help="folder for metrics.json, path.csv, map.json and plots")
+    slam.add_argument("--force", action="store_true", help="replace --out if it holds files")
 
     predict = sub.add_parser("predict", help="pre-label new frames for Roboflow, or draw a model's view on a video")
     source = predict.add_mutually_exclusive_group(required=True)
@@ -275,6 +283,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _slam(args: argparse.Namespace) -> int:
     from calibration.run import load_calibration
+    from detector.datasets.io import output_folder
     from detector.slam_reference import smooth
     from detector.slam_run import (BACKENDS, FrontEnd, compare_backends, print_comparison, recorded_sequence,
                                    sim_sequence, utias_sequence, write_outputs)
@@ -309,16 +318,20 @@ def _slam(args: argparse.Namespace) -> int:
                         outlier_filter=args.outlier_filter, gate=None if args.no_gate else args.gate,
                         min_views=args.min_views, min_separation_m=args.min_separation, association=association,
                         self_calibrate=not args.no_self_calibration)
-    sequence = make(args.seed)
-    metrics = write_outputs(run_slam(sequence, config), sequence, args.out)
+    inputs = (args.utias, args.frames, args.odometry, args.calibration, Path(frontend) if frontend else None)
+    with output_folder(args.out, args.force, _existing(*inputs)) as out:
+        sequence = make(args.seed)
+        metrics = write_outputs(run_slam(sequence, config), sequence, out)
+        rows = None
+        if args.compare:
+            seeds = list(range(args.seed, args.seed + (args.compare if args.sim else 1)))
+            reference = smooth if args.sim and not front_end else None
+            rows = compare_backends(lambda s: sequence if s == args.seed else make(s), seeds, BACKENDS, reference)
+            write_json(out / "comparison.json", rows)
     summary = ", ".join(f"{key} mean {metrics[key]['mean']:.3f} m" for key in
                         ("robot_error", "landmark_error", "odometry_error") if key in metrics)
     print(f"{config.label} on {sequence.name}: {summary}; wrote {args.out}")
-    if args.compare:
-        seeds = list(range(args.seed, args.seed + (args.compare if args.sim else 1)))
-        reference = smooth if args.sim and not front_end else None
-        rows = compare_backends(lambda s: sequence if s == args.seed else make(s), seeds, BACKENDS, reference)
-        write_json(args.out / "comparison.json", rows)
+    if rows is not None:
         print_comparison(rows, f"back ends on {sequence.name} ({len(seeds)} seed(s))")
     return 0
 
@@ -458,17 +471,19 @@ def _calibrate(args: argparse.Namespace) -> int:
 
 def _evaluate(args: argparse.Namespace) -> int:
     from calibration.run import load_calibration
+    from detector.datasets.io import output_folder
     from detector.evaluation.predictors import make_predictor
     from detector.evaluation.run import evaluate, print_metrics
 
     calibration = load_calibration(args.calibration) if args.calibration else None
     rows = []
     models = args.model or ["shipped"]
-    for model in models:
-        predictor = make_predictor(model, args.imgsz, calibration)
-        out = args.out / predictor.name if len(models) > 1 else args.out
-        conf = args.conf if args.conf is not None else predictor.operating_conf or FALLBACK_CONF
-        rows.append(evaluate(predictor, args.data, out, args.split, conf))
+    with output_folder(args.out, args.force, _existing(args.data, args.calibration, *map(Path, models))) as folder:
+        for model in models:
+            predictor = make_predictor(model, args.imgsz, calibration)
+            out = folder / predictor.name if len(models) > 1 else folder
+            conf = args.conf if args.conf is not None else predictor.operating_conf or FALLBACK_CONF
+            rows.append(evaluate(predictor, args.data, out, args.split, conf))
     print_metrics(rows)
     print(f"wrote {args.out} (metrics.json, per_image.png, sweep.png, confusion.png, recall_by_width.png, errors/)")
     return 0

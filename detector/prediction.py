@@ -16,11 +16,10 @@ import cv2
 import numpy as np
 
 from detector.console import show_progress
-from detector.datasets.io import IMAGE_SUFFIXES, DatasetWriter, check_output_folder, require_decodable
+from detector.datasets.io import IMAGE_SUFFIXES, DatasetWriter, output_folder, require_decodable
 from detector.datasets.model import Instance
 from detector.datasets.polygons import mask_to_polygon
 from detector.preview import CLASS_BGR, contact_sheet
-from naoslam.atomic import atomic_folder
 from naoslam.detector import Detection, LandmarkDetector
 from naoslam.landmarks import CLASSES
 from naoslam.measurement import MeasurementModel
@@ -116,7 +115,7 @@ def _write_coco(out: Path, labelled: Iterable[tuple[str, np.ndarray, list[Instan
     and ``_annotations.coco.json`` (pixel polygons)."""
     categories = [{"id": i, "name": code, "supercategory": "poles"} for i, code in enumerate(CLASSES)]
     images, annotations = [], []
-    with atomic_folder(check_output_folder(out, force, (protect,))) as tmp:
+    with output_folder(out, force, (protect,)) as tmp:
         (tmp / "train").mkdir()
         for index, (name, frame, instances) in enumerate(labelled):
             target = tmp / "train" / name

@@ -207,6 +207,8 @@ OUTPUT_CASES = [
     _out_case("contains the input", lambda tmp, d: d.parent, "split"),
     _out_case("is an existing file", lambda tmp, d: (tmp / "file.txt", (tmp / "file.txt").write_text("x"))[0], "convert",
               force=False),
+    _out_case("is the input", lambda tmp, d: d, "evaluate"),
+    _out_case("inside the images folder", lambda tmp, d: d / "train" / "images", "evaluate"),
 ]
 
 
@@ -262,6 +264,13 @@ def _undecodable_frame(tmp: Path) -> tuple[list[str], Path, str]:
     argv, folder, frame = _odometry(tmp, "t,x,y,theta\n0,0,0,0\n1,1,0,0\n", frame="0.5.jpg")
     (folder / "frames" / frame).write_bytes(b"\xff\xd8\xff")
     return argv, folder, frame
+
+
+def _slam_into_the_recording(tmp: Path) -> tuple[list[str], Path, str]:
+    """``--out --force`` naming the folder that holds the recording's frames and odometry."""
+    argv, folder, _ = _odometry(tmp, "t,x,y,theta\n0,0,0,0\n1,1,0,0\n", frame="0.5.jpg")
+    argv[argv.index(str(tmp / "out"))] = str(folder)
+    return argv + ["--force"], folder, "overlaps the input"
 
 
 def _swap_odometry_rows(folder: Path) -> None:
@@ -330,6 +339,7 @@ OTHER_CASES = [
     _plain("slam: frame not named by its time", lambda tmp, d: _odometry(tmp, "t,x,y,theta\n0,0,0,0\n1,1,0,0\n",
                                                                          frame="left.jpg")),
     _plain("slam: a frame that cannot be decoded", lambda tmp, d: _undecodable_frame(tmp)),
+    _plain("slam: --out is the recording's folder", lambda tmp, d: _slam_into_the_recording(tmp)),
     _plain("slam: --confusion-rate above 1", lambda tmp, d: (["slam", "--sim", "square", "--confusion-rate", "2",
                                                               "--out", str(tmp / "out")], tmp, "--confusion-rate")),
     _plain("slam: negative --lookalikes", lambda tmp, d: (["slam", "--sim", "square", "--lookalikes", "-1",

@@ -312,6 +312,19 @@ def test_colour_filter_rejects_a_pink_poster_without_a_second_band():
     assert ColourFilter()(frame) == []
 
 
+def test_evaluate_keeps_a_used_out_and_force_replaces_it_whole(synth_dataset, tmp_path, capsys):
+    out = tmp_path / "eval"
+    (out / "errors").mkdir(parents=True)
+    (out / "errors" / "old-model_fp.jpg").write_bytes(b"yesterday's overlay")
+    argv = ["evaluate", str(synth_dataset), "--model", "colour-filter", "--out", str(out)]
+    assert main(argv) == 2
+    assert "--force" in capsys.readouterr().err
+    assert (out / "errors" / "old-model_fp.jpg").exists() and not (out / "metrics.json").exists()
+    assert main([*argv, "--force"]) == 0
+    assert not (out / "errors" / "old-model_fp.jpg").exists()  # no overlay of another run is left to mislead
+    assert json.loads((out / "metrics.json").read_text())["model"] == "colour-filter"
+
+
 def test_evaluate_writes_metrics_plots_and_overlays(synth_dataset, tmp_path):
     metrics = evaluate(ColourFilterPredictor(), synth_dataset, tmp_path / "eval", progress=False)
     saved = json.loads((tmp_path / "eval" / "metrics.json").read_text())

@@ -68,7 +68,10 @@ def test_demo_runs_every_stage_writes_the_report_and_resumes(tmp_path, monkeypat
     assert {k: v["seconds"] for k, v in after.items()} == before
     # A new starting checkpoint (an updated package ships other weights) makes training, and all after it, run again.
     monkeypatch.setattr("detector.demo.pipeline._start_weights", lambda model: None)
+    stale = out / "evaluation" / "colour-filter" / "errors" / "from-the-last-model.jpg"
+    stale.write_bytes(b"an overlay of the model before")
     assert run_demo(out, TINY) == 0
+    assert not stale.exists()  # a stage that runs again replaces its folder whole
     again = json.loads((out / "stages.json").read_text())
     assert again["train yolov8n-seg"]["summary"]["weights_from"] == "scratch"
     assert again["evaluate"]["summary"]["conf_source"] == "best F1 on the validation split"

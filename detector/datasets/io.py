@@ -4,6 +4,8 @@ from __future__ import annotations
 import json
 import os
 import shutil
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from types import TracebackType
 
@@ -27,7 +29,8 @@ def require_decodable(paths: list[Path]) -> None:
     bad = [path for path in paths if cv2.imread(str(path), cv2.IMREAD_COLOR) is None]
     if bad:
         more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
-        raise ValueError(f"{bad[0]}{more}: cannot be decoded as an image - remove it or re-save it; nothing was written")
+        raise ValueError(f"{bad[0]}{more}: cannot be decoded as an image - remove it or re-save it; "
+                         "nothing was written")
 
 
 def load_dataset(path: str | Path, renames: dict[str, str] | None = None) -> Dataset:
@@ -162,6 +165,14 @@ def check_output_folder(out: str | Path, force: bool, protect: tuple[Path, ...])
     if out.exists() and any(out.iterdir()) and not force:
         raise FileExistsError(f"{out} exists and is not empty: choose another --out or pass --force to replace it")
     return out
+
+
+@contextmanager
+def output_folder(out: str | Path, force: bool, protect: tuple[Path, ...]) -> Iterator[Path]:
+    """A temporary folder for a command's output, moved to ``out`` when the block succeeds, so ``out`` holds one
+    run's files and never half of one; ``out`` is checked first by ``check_output_folder``."""
+    with atomic_folder(check_output_folder(out, force, protect)) as tmp:
+        yield tmp
 
 
 class DatasetWriter:

@@ -214,24 +214,28 @@ def _calibrate(folder: Path, models: list[Path], budget: Budget, seed: int) -> d
 
 def _evaluate(folder: Path, models: list[Path], data: Path, calibration_json: Path, budget: Budget,
               starting_conf: float | None) -> dict:
+    """Evaluate every model and the colour filter into ``folder``, replaced whole (no overlay of an earlier run
+    stays beside this one's)."""
     from calibration.run import load_calibration
+    from detector.datasets.io import output_folder
     from detector.evaluation.predictors import make_predictor
     from detector.evaluation.run import evaluate
     from naoslam.atomic import write_json
 
     calibration = load_calibration(calibration_json)
     conf, conf_source = budget.conf, "the thesis's"
-    if conf is None:  # chosen on the validation split, never on the test frames
-        validation = evaluate(make_predictor(str(models[0])), data, folder / "validation", "valid", 0.5)
-        conf, conf_source = operating_threshold(validation, starting_conf)
-    rows = []
-    candidates = [str(p) for m in models for p in (m, m.with_name(f"{m.stem}-int8.onnx"))] + ["colour-filter"]
-    for model in candidates:
-        predictor = make_predictor(model, calibration=calibration)
-        metrics = evaluate(predictor, data, folder / predictor.name, "test", conf)
-        rows.append({k: v for k, v in metrics.items() if k not in ("sweep", "per_image")}
-                    | {"folder": str(folder / predictor.name)})
-    write_json(folder / "summary.json", rows)
+    with output_folder(folder, force=True, protect=(data,)) as tmp:
+        if conf is None:  # chosen on the validation split, never on the test frames
+            validation = evaluate(make_predictor(str(models[0])), data, tmp / "validation", "valid", 0.5)
+            conf, conf_source = operating_threshold(validation, starting_conf)
+        rows = []
+        candidates = [str(p) for m in models for p in (m, m.with_name(f"{m.stem}-int8.onnx"))] + ["colour-filter"]
+        for model in candidates:
+            predictor = make_predictor(model, calibration=calibration)
+            metrics = evaluate(predictor, data, tmp / predictor.name, "test", conf)
+            rows.append({k: v for k, v in metrics.items() if k not in ("sweep", "per_image")}
+                        | {"folder": str(folder / predictor.name)})
+        write_json(tmp / "summary.json", rows)
     return {"rows": rows, "conf": conf, "conf_source": conf_source}
 
 
@@ -247,6 +251,7 @@ def operating_threshold(validation: dict, starting_conf: float | None) -> tuple[
 
 def _slam(folder: Path, model: Path, calibration_json: Path, budget: Budget, conf: float, seed: int) -> dict:
     from calibration.run import load_calibration
+    from detector.datasets.io import output_folder
     from detector.slam_run import (BACKENDS, FrontEnd, compare_backends, image_sequences, sim_sequence,
                                    write_outputs)
     from naoslam.atomic import write_json
@@ -261,16 +266,19 @@ def _slam(folder: Path, model: Path, calibration_json: Path, budget: Budget, con
     tables = {}
     front_ends = {"model": FrontEnd(str(model), calibration, conf),
                   "colour filter": FrontEnd("colour-filter", calibration, conf)}
-    for name, sequence in zip(front_ends, image_sequences(sim, list(front_ends.values()))):
-        metrics = write_outputs(run_slam(sequence, chosen), sequence, folder / name.replace(" ", "-"))
-        summary[name] = {"metrics": metrics, "map": str(folder / name.replace(" ", "-") / "map.png"),
-                         "errors": str(folder / name.replace(" ", "-") / "errors.png"),
-                         "measurements": sum(len(e.measurements or []) for e in sequence.events)}
-        tables[f"image-level sim, {name}"] = compare_backends(lambda s, seq=sequence: seq, [seed], BACKENDS)
-    tables["measurement-level sim"] = compare_backends(
-        lambda s: sim_sequence(SimConfig(duration_s=budget.walk_seconds, seed=s)), list(range(budget.compare_seeds)))
-    summary["tables"] = tables
-    write_json(folder / "summary.json", summary)
+    with output_folder(folder, force=True, protect=()) as tmp:
+        for name, sequence in zip(front_ends, image_sequences(sim, list(front_ends.values()))):
+            subfolder = name.replace(" ", "-")
+            metrics = write_outputs(run_slam(sequence, chosen), sequence, tmp / subfolder)
+            summary[name] = {"metrics": metrics, "map": str(folder / subfolder / "map.png"),
+                             "errors": str(folder / subfolder / "errors.png"),
+                             "measurements": sum(len(e.measurements or []) for e in sequence.events)}
+            tables[f"image-level sim, {name}"] = compare_backends(lambda s, seq=sequence: seq, [seed], BACKENDS)
+        tables["measurement-level sim"] = compare_backends(
+            lambda s: sim_sequence(SimConfig(duration_s=budget.walk_seconds, seed=s)),
+            list(range(budget.compare_seeds)))
+        summary["tables"] = tables
+        write_json(tmp / "summary.json", summary)
     return summary
 
 
