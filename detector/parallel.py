@@ -40,10 +40,16 @@ def _pool(workers: int) -> mp.pool.Pool:
         return mp.get_context("spawn").Pool(workers, initializer=_plain_signals)
     gc.collect()
     gc.freeze()
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, _WORKER_SIGNALS)  # forked workers start with these held
     try:
         return mp.get_context("fork").Pool(workers, initializer=_plain_signals)
     finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
         gc.unfreeze()
+
+
+#: Signals a forked worker holds from its birth until ``_plain_signals`` has set how it takes them.
+_WORKER_SIGNALS = {signal.SIGTERM, signal.SIGINT}
 
 
 def _plain_signals() -> None:
@@ -51,10 +57,15 @@ def _plain_signals() -> None:
 
     A forked worker would otherwise inherit the command's SIGTERM handler (which raises to clean up), and the
     ``terminate()`` that ends every pool could then interrupt a worker while it holds the task queue's lock, leaving
-    the other workers waiting on that lock forever.
+    the other workers waiting on that lock forever. A SIGTERM that comes before this runs (``terminate()`` while a
+    worker has not yet been scheduled after its fork) is held until the handler is the default one: taken by the
+    inherited handler before ``multiprocessing``'s bootstrap, it would raise in the child, which then ran on as a copy
+    of its parent (seen once as a test run that hung).
     """
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if os.name != "nt":
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, _WORKER_SIGNALS)
 
 
 def default_workers(jobs: int) -> int:

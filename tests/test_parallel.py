@@ -38,6 +38,31 @@ def test_workers_do_not_inherit_the_commands_sigterm_handler():
     assert seen == [True] * 8
 
 
+def _held_at_start_and_now(_: int) -> tuple[bool, bool]:
+    return _held_at_start, signal.SIGTERM in signal.pthread_sigmask(signal.SIG_BLOCK, [])
+
+
+_held_at_start = None
+
+
+def test_a_worker_holds_sigterm_until_it_takes_it_plainly(monkeypatch):
+    """``terminate()`` may signal a worker that has not run a line since its fork: the signal must wait for the
+    default handler (and then kill it), never meet the parent's raising one."""
+    import detector.parallel as parallel
+
+    set_up = parallel._plain_signals
+
+    def recording_set_up() -> None:
+        global _held_at_start
+        _held_at_start = signal.SIGTERM in signal.pthread_sigmask(signal.SIG_BLOCK, [])
+        set_up()
+
+    monkeypatch.setattr(parallel, "_plain_signals", recording_set_up)
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, [])
+    assert set(ordered_map(_held_at_start_and_now, range(8), workers=2)) == {(True, False)}
+    assert signal.pthread_sigmask(signal.SIG_BLOCK, []) == before  # the parent's mask is given back
+
+
 def test_a_forked_worker_never_destroys_an_onnxruntime_session_the_parent_left_to_the_collector():
     """Destroying an onnxruntime session in a forked worker waits for thread-pool threads that were not forked:
     forever. A session in a reference cycle is freed by the garbage collector, whenever it runs next; this once
