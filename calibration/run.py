@@ -10,6 +10,7 @@ import numpy as np
 
 from calibration.fit import WALK_RELATIVE_STD, calibrate
 from calibration.samples import MEASURE_CONF, SizeSample, as_arrays, measure_samples, measures_law, open_ranged
+from detector.datasets.io import check_output_file
 from naoslam.atomic import write_json
 from naoslam.detector import LandmarkDetector
 from naoslam.measurement import RangeCalibration
@@ -25,8 +26,9 @@ def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv:
     """Fit from ``data`` and write ``out`` (calibration + report); returns what was written. ``noise_data``: frames
     of a walk with true ranges (e.g. ``poles synth --walk``), measured the same way, set the noise the filter is
     told. ``input_width``: the ``model``'s input width on the robot (None: its own)."""
-    if Path(out).exists() and not force:
-        raise FileExistsError(f"{out} exists - pick another --out or add --force")
+    inputs = tuple(Path(path) for path in (data, truth_csv, model, embed, *noise_data) if path is not None)
+    for output in (out, plot) if plot else (out,):
+        check_output_file(output, force, inputs)
     if input_width is not None and model is None:
         raise ValueError("--imgsz is a model's input width: give --model (label masks have no input width)")
     if embed:

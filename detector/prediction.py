@@ -16,7 +16,8 @@ import cv2
 import numpy as np
 
 from detector.console import show_progress
-from detector.datasets.io import IMAGE_SUFFIXES, DatasetWriter, output_folder, require_decodable
+from detector.datasets.io import (IMAGE_SUFFIXES, DatasetWriter, check_output_file, output_folder,
+                                  require_decodable)
 from detector.datasets.model import Instance
 from detector.datasets.polygons import mask_to_polygon
 from detector.preview import CLASS_BGR, contact_sheet
@@ -143,10 +144,8 @@ def overlay_video(source: Path, out: Path, model: Path | None = None, conf: floa
     out = Path(out)
     if out.suffix.lower() != ".mp4":
         raise ValueError(f"--out {out}: the overlay video is written as MP4 - name it *.mp4")
-    if out.exists() and not force:
-        raise FileExistsError(f"{out} exists - pick another --out or add --force")
-    if Path(source).is_dir() and Path(source).resolve() in out.resolve().parents:
-        raise ValueError(f"--out {out} lies inside the frames folder {source}: inputs are never written")
+    for output in (out, out.with_suffix(".png")):  # the video and its contact sheet
+        check_output_file(output, force, (Path(source),))
     detector = LandmarkDetector(model, conf=conf, input_width=input_width)
     calibration = detector.usable_calibration
     measurer = MeasurementModel(calibration, detector.conf) if calibration else None

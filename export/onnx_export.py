@@ -15,17 +15,12 @@ from typing import Any
 
 import onnx
 
+from detector.datasets.io import check_output_file
 from naoslam.atomic import atomic_path
 from naoslam.model_info import METADATA_KEY, ModelInfo
 
 #: Network input (height, width) for the Nao's 640x480 frames: no letterbox padding.
 NAO_INPUT_HW = (480, 640)
-
-
-def refuse_overwrite(out: Path, force: bool) -> None:
-    """Raise unless ``out`` is free or ``force`` is set."""
-    if Path(out).exists() and not force:
-        raise FileExistsError(f"{out} exists - pick another --out or add --force to replace it")
 
 
 def export_onnx(weights: Path, out: Path, input_hw: tuple[int, int] = NAO_INPUT_HW, force: bool = False,
@@ -40,7 +35,7 @@ def export_onnx(weights: Path, out: Path, input_hw: tuple[int, int] = NAO_INPUT_
     weights, out = Path(weights), Path(out)
     if not weights.is_file():
         raise FileNotFoundError(f"{weights}: no such checkpoint - train one with `poles train`")
-    refuse_overwrite(out, force)
+    check_output_file(out, force, (weights,))
     if any(side % 32 for side in input_hw):
         raise ValueError(f"--imgsz {input_hw[0]} {input_hw[1]}: both sides must be multiples of the stride 32")
     with tempfile.TemporaryDirectory(prefix="poles-export-") as scratch:

@@ -9,7 +9,8 @@ import cv2
 import numpy as np
 
 from detector.datasets.intake import open_dataset
-from export.onnx_export import NAO_INPUT_HW, export_onnx, refuse_overwrite
+from detector.datasets.io import check_output_file
+from export.onnx_export import NAO_INPUT_HW, export_onnx
 from export.quantize import quantize_int8
 from export.verify import (FP32_TOLERANCE, INT8_TOLERANCE, compare, frontend_predict, median_latency_ms,
                            ultralytics_predict)
@@ -83,13 +84,13 @@ def read_frames(paths: list[Path]) -> list[np.ndarray]:
 
 def run_export(job: ExportJob) -> dict:
     """Export, verify, optionally quantise; returns the report (also written to ``job.report_path``)."""
-    refuse_overwrite(job.out, job.force)
     from detector.training import read_checkpoint
 
     read_checkpoint(job.weights)  # a clear error for a missing file or one that is not a checkpoint
-    if job.int8:
-        refuse_overwrite(job.int8_path, job.force)
     data = job.data or training_dataset(job.weights)
+    inputs = tuple(path for path in (job.weights, data, job.calib_data) if path is not None)
+    for output in (job.out, job.report_path) + ((job.int8_path,) if job.int8 else ()):
+        check_output_file(output, job.force, inputs)
     frames = read_frames(dataset_images(data, ("valid", "test"), VERIFY_FRAMES))
     unverified = job.out.with_name(f".{job.out.name}.unverified")
     try:

@@ -209,6 +209,7 @@ OUTPUT_CASES = [
               force=False),
     _out_case("is the input", lambda tmp, d: d, "evaluate"),
     _out_case("inside the images folder", lambda tmp, d: d / "train" / "images", "evaluate"),
+    _out_case("is the dataset's data.yaml", lambda tmp, d: d / "data.yaml", "calibrate"),
 ]
 
 
@@ -271,6 +272,35 @@ def _slam_into_the_recording(tmp: Path) -> tuple[list[str], Path, str]:
     argv, folder, _ = _odometry(tmp, "t,x,y,theta\n0,0,0,0\n1,1,0,0\n", frame="0.5.jpg")
     argv[argv.index(str(tmp / "out"))] = str(folder)
     return argv + ["--force"], folder, "overlaps the input"
+
+
+def _plot_over_a_frame(tmp: Path, data: Path) -> tuple[list[str], Path, str]:
+    """``poles calibrate --plot --force`` naming one of the dataset's own frames."""
+    frame = first_image(data)
+    return COMMAND_ARGV["calibrate"](tmp, data) + ["--plot", str(frame), "--force"], data, "overlaps the input"
+
+
+def _video(tmp: Path) -> Path:
+    """A three-frame MP4 in ``tmp/inputs``."""
+    path = tmp / "inputs" / "walk.mp4"
+    path.parent.mkdir(exist_ok=True)
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 5, (64, 48))
+    for _ in range(3):
+        writer.write(np.zeros((48, 64, 3), np.uint8))
+    writer.release()
+    return path
+
+
+def _video_onto_itself(tmp: Path) -> tuple[list[str], Path, str]:
+    video = _video(tmp)
+    return ["predict", "--video", str(video), "--out", str(video), "--force"], video.parent, "overlaps the input"
+
+
+def _sheet_name_taken(tmp: Path) -> tuple[list[str], Path, str]:
+    """The contact sheet ``OUT.png`` would replace a file already there."""
+    video = _video(tmp)
+    (tmp / "overlay.png").write_bytes(b"someone's picture")
+    return ["predict", "--video", str(video), "--out", str(tmp / "overlay.mp4")], tmp, "overlay.png"
 
 
 def _swap_odometry_rows(folder: Path) -> None:
@@ -340,6 +370,9 @@ OTHER_CASES = [
                                                                          frame="left.jpg")),
     _plain("slam: a frame that cannot be decoded", lambda tmp, d: _undecodable_frame(tmp)),
     _plain("slam: --out is the recording's folder", lambda tmp, d: _slam_into_the_recording(tmp)),
+    _plain("calibrate: --plot is a frame of the dataset", _plot_over_a_frame),
+    _plain("predict: --out is the input video", lambda tmp, d: _video_onto_itself(tmp)),
+    _plain("predict: the contact sheet's name is taken", lambda tmp, d: _sheet_name_taken(tmp)),
     _plain("slam: --confusion-rate above 1", lambda tmp, d: (["slam", "--sim", "square", "--confusion-rate", "2",
                                                               "--out", str(tmp / "out")], tmp, "--confusion-rate")),
     _plain("slam: negative --lookalikes", lambda tmp, d: (["slam", "--sim", "square", "--lookalikes", "-1",

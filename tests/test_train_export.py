@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 
 import cv2
 import numpy as np
@@ -118,6 +119,18 @@ def test_run_export_fails_and_writes_nothing_when_onnx_disagrees(tiny_weights, s
     with pytest.raises(ExportMismatch, match="box IoU down to"):
         run_export(job)
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("where", ["the checkpoint", "inside the dataset"])
+def test_export_never_writes_over_its_inputs_even_with_force(where, tiny_weights, dataset_copy, tmp_path, capsys):
+    weights = tmp_path / "best.pt"
+    shutil.copyfile(tiny_weights, weights)
+    out = weights if where == "the checkpoint" else dataset_copy / "model.onnx"
+    before = weights.read_bytes()
+    argv = ["export", "--weights", str(weights), "--data", str(dataset_copy), "--out", str(out), "--force"]
+    assert main(argv) == 2
+    assert "overlaps the input" in capsys.readouterr().err
+    assert weights.read_bytes() == before and not (dataset_copy / "model.onnx").exists()
 
 
 def test_an_interrupted_run_resumes_where_it_stopped(synth_dataset, tmp_path, monkeypatch):

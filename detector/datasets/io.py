@@ -158,13 +158,30 @@ def check_output_folder(out: str | Path, force: bool, protect: tuple[Path, ...])
     out = Path(out).resolve()
     if out.exists() and not out.is_dir():
         raise FileExistsError(f"--out {out} is a file: give a folder for the dataset")
-    for guarded in protect:
-        guarded = Path(guarded).resolve()
-        if out == guarded or guarded in out.parents or out in guarded.parents:
-            raise ValueError(f"output {out} overlaps the input {guarded}: choose another --out (inputs are never written)")
+    _refuse_overlap(out, protect)
     if out.exists() and any(out.iterdir()) and not force:
         raise FileExistsError(f"{out} exists and is not empty: choose another --out or pass --force to replace it")
     return out
+
+
+def check_output_file(out: str | Path, force: bool, protect: tuple[Path, ...]) -> Path:
+    """The resolved output file, or an error: it is a folder, is an input file or lies in an input folder (never
+    allowed, even with ``force``), or exists and ``force`` is not set."""
+    out = Path(out).resolve()
+    if out.is_dir():
+        raise IsADirectoryError(f"{out} is a folder: give a file name")
+    _refuse_overlap(out, protect)
+    if out.exists() and not force:
+        raise FileExistsError(f"{out} exists - pick another name or add --force to replace it")
+    return out
+
+
+def _refuse_overlap(out: Path, protect: tuple[Path, ...]) -> None:
+    """Refuse an output that is, holds or lies inside one of the inputs in ``protect`` (files or folders)."""
+    for guarded in protect:
+        guarded = Path(guarded).resolve()
+        if out == guarded or guarded in out.parents or out in guarded.parents:
+            raise ValueError(f"output {out} overlaps the input {guarded}: choose another path (inputs are never written)")
 
 
 @contextmanager
