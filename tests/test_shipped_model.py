@@ -29,6 +29,18 @@ def test_shipped_files_exist_within_the_size_budget():
     assert shipped_model(int8=True).stat().st_size < shipped_model().stat().st_size / 2
 
 
+def test_version_names_the_shipped_model_a_user_runs(capsys):
+    import hashlib
+
+    with pytest.raises(SystemExit) as exited:
+        main(["--version"])
+    assert exited.value.code == 0
+    printed = capsys.readouterr().out
+    digest = hashlib.sha256(shipped_model().read_bytes()).hexdigest()[:12]
+    assert printed.startswith("poles 0.") and f"sha256 {digest}" in printed
+    assert f"threshold {LandmarkDetector().stored_conf}" in printed and "onnxruntime 1." in printed
+
+
 def _rendered_pole(code: str, range_m: float, angle_deg: float, seed: int):
     """One pole rendered by a 640x480 Nao camera: the BGR uint8 frame and the render (with the pole's mask)."""
     scene = calibration_scene(np.random.default_rng(seed), PinholeCamera(640, 480), code, range_m=range_m,
