@@ -409,13 +409,15 @@ def _synth(args: argparse.Namespace) -> int:
 
 
 def _check(args: argparse.Namespace) -> int:
-    from detector.datasets.check import check_dataset, print_report, write_fixed_copy
+    from detector.datasets.check import check_dataset, listing_path, print_report, write_fixed_copy
+    from detector.datasets.io import check_output_folder
 
     if args.fix and args.out is None:
         raise ValueError("--fix needs --out CLEAN: the cleaned copy is never written in place")
     report = check_dataset(args.data)
-    beside = Path(f"{args.out}.check.txt") if args.fix else Path(f"check-{Path(args.data).resolve().name}.txt")
-    print_report(report, show_notes=args.notes, full_list=beside)
+    if args.fix:  # refused before the list of problems is written beside it
+        check_output_folder(args.out, args.force, report.dataset.input_folders())
+    print_report(report, show_notes=args.notes, full_list=listing_path(report.dataset, args.out if args.fix else None))
     if args.fix:
         print(f"cleaned copy: {write_fixed_copy(report, args.out, force=args.force)}")
     return 1 if report.errors else 0

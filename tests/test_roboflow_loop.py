@@ -137,6 +137,20 @@ def test_check_summarises_many_problems_and_writes_the_whole_list(dataset_copy, 
     assert len(printed.splitlines()) < 40
 
 
+@pytest.mark.parametrize("run_from", ["inside the dataset", "a refused --fix copy"])
+def test_check_never_writes_its_list_into_the_dataset(run_from, dataset_copy, tmp_path, monkeypatch):
+    for label in sorted(dataset_copy.rglob("labels/*.txt")):
+        label.write_text(label.read_text() + "9 0.1 0.1 0.2 0.1 0.2 0.2\n0 0.1 0.1 0.2\n")
+    files = sorted(dataset_copy.rglob("*"))
+    if run_from == "inside the dataset":
+        monkeypatch.chdir(dataset_copy)
+        assert main(["check", "."]) == 1
+        assert (dataset_copy.parent / f"check-{dataset_copy.name}.txt").is_file()  # beside the dataset
+    else:
+        assert main(["check", str(dataset_copy), "--fix", "--out", str(dataset_copy / "clean")]) == 2
+    assert sorted(dataset_copy.rglob("*")) == files
+
+
 def test_rename_maps_an_exports_own_class_names(dataset_copy, tmp_path, capsys):
     truth = poles_by_name(dataset_copy)
     config = yaml.safe_load((dataset_copy / "data.yaml").read_text())

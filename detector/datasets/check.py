@@ -120,6 +120,16 @@ def print_report(report: CheckReport, console: Console | None = None, show_notes
     return None
 
 
+def listing_path(dataset: Dataset, fixed_copy: Path | None = None) -> Path:
+    """Where the whole list of problems goes: ``CLEAN.check.txt`` beside a ``--fix`` copy, else
+    ``check-<dataset>.txt`` in the working folder, or beside the dataset when run from inside it (never into it)."""
+    if fixed_copy is not None:
+        return Path(f"{fixed_copy}.check.txt")
+    root, here = Path(dataset.root).resolve(), Path.cwd().resolve()
+    inside = any(here == folder or folder in here.parents for folder in dataset.input_folders())
+    return (root.parent if inside else here) / f"check-{root.name}.txt"
+
+
 def _kind(message: str) -> str:
     """What a problem is, without its particulars (quoted names, numbers)."""
     return re.sub(r"'[^']*'|\"[^\"]*\"|-?\d+(\.\d+)?", "#", message)
