@@ -403,7 +403,8 @@ def _synth(args: argparse.Namespace) -> int:
     backgrounds = scan_backdrops(args.backgrounds) if args.backgrounds is not None else ()
     job = SynthJob(images, args.seed, *args.size, hfov_deg=args.hfov, calibration_shots=args.calibration_shots,
                    backgrounds=backgrounds, backdrop_share=args.backdrop_share, walk=args.walk, config=config)
-    out = generate_dataset(args.out, job, workers=args.workers, preview=args.preview, force=args.force)
+    out = generate_dataset(args.out, job, workers=args.workers, preview=args.preview, force=args.force,
+                           protect=_existing(args.backgrounds))
     print(f"wrote {images} images to {out}")
     return 0
 

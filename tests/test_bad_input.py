@@ -280,6 +280,15 @@ def _plot_over_a_frame(tmp: Path, data: Path) -> tuple[list[str], Path, str]:
     return COMMAND_ARGV["calibrate"](tmp, data) + ["--plot", str(frame), "--force"], data, "overlaps the input"
 
 
+def _synth_into_the_backgrounds(tmp: Path) -> tuple[list[str], Path, str]:
+    """``poles synth --out`` inside ``--backgrounds``: its frames with poles would be read back as frames without."""
+    folder = tmp / "inputs" / "backgrounds"
+    folder.mkdir(parents=True)
+    cv2.imwrite(str(folder / "office.jpg"), np.full((240, 320, 3), 120, np.uint8))
+    return ["synth", "--out", str(folder / "synth"), "--images", "2", "--backgrounds", str(folder)], folder, \
+        "overlaps the input"
+
+
 def _video(tmp: Path) -> Path:
     """A three-frame MP4 in ``tmp/inputs``."""
     path = tmp / "inputs" / "walk.mp4"
@@ -330,6 +339,7 @@ OTHER_CASES = [
     _plain("synth: --images 0", lambda tmp, d: (["synth", "--out", str(tmp / "out"), "--images", "0"], tmp, "--images")),
     _plain("synth: backgrounds folder missing", lambda tmp, d: (["synth", "--out", str(tmp / "out"), "--images", "2",
                                                                  "--backgrounds", str(tmp / "none")], tmp, "none")),
+    _plain("synth: --out inside the backgrounds folder", lambda tmp, d: _synth_into_the_backgrounds(tmp)),
     _plain("augment: config is broken YAML", lambda tmp, d: (
         COMMAND_ARGV["augment"](tmp, d) + ["--config", str(_truth_csv(tmp, "rotate_deg: [1\n"))], d, "ranges.csv")),
     _plain("augment: config has an unknown key", lambda tmp, d: (

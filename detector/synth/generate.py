@@ -197,11 +197,12 @@ def _render_star(args: tuple[SynthJob, int]) -> RenderedSample:
 
 
 def generate_dataset(out: str | Path, job: SynthJob, *, workers: int | None = None, preview: bool = False,
-                     force: bool = False, progress: bool = True) -> Path:
+                     force: bool = False, progress: bool = True, protect: tuple[Path, ...] = ()) -> Path:
     """Render ``job.images`` frames into a Roboflow-layout dataset at ``out`` with ``annotations.json``.
 
     Calibration shots and a walk's frames all go to the ``test`` split; other frames are split 70/20/10
-    (train/test/valid).
+    (train/test/valid). ``protect``: folders ``out`` may not overlap (the backgrounds folder: frames with poles
+    written into it would be read back as frames without).
     """
     walk_length = len(walk_frame_steps(job.walk, job.seed)) if job.walk else None
     if walk_length is not None and job.images > walk_length:
@@ -212,7 +213,7 @@ def generate_dataset(out: str | Path, job: SynthJob, *, workers: int | None = No
     workers = workers or default_workers(job.images)
     annotations = {"classes": list(CLASSES), "generator": _describe(job), "fields": ANNOTATION_FIELDS, "images": {}}
     tiles = []
-    with DatasetWriter(out, force=force) as writer:
+    with DatasetWriter(out, force=force, protect=protect) as writer:
         results = ordered_map(_render_star, ((job, i) for i in range(job.images)), workers)
         for sample in show_progress(results, "rendering", "img", total=job.images, enabled=progress):
             name = f"{kind}_{sample.index:05d}.jpg"
