@@ -27,7 +27,7 @@ import numpy as np
 from naoslam import observation
 from naoslam.association import CandidatePool, Hypothesis, choose
 from naoslam.measurement import Measurement
-from naoslam.motion import OdometryModel, VelocityModel, wrap
+from naoslam.motion import OdometryModel, VelocityModel, finite_control, wrap
 
 OUTLIER_RANGE_M = 0.4
 OUTLIER_BEARING_RAD = math.pi / 3
@@ -155,7 +155,9 @@ class EkfSlam:
         return out
 
     def predict(self, u: np.ndarray) -> None:
-        """Move the pose with reported control ``u`` (scaled by the estimated odometry scales)."""
+        """Move the pose with reported control ``u`` (scaled by the estimated odometry scales); a control that is not
+        finite is refused (``finite_control``) and the filter is left as it was."""
+        u = finite_control(u)
         r = self.robot_size
         pose = self.mu[:3].copy()
         stride, turn = self.odometry_scales

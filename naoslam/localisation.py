@@ -14,7 +14,7 @@ import numpy as np
 
 from naoslam import observation
 from naoslam.measurement import Measurement
-from naoslam.motion import OdometryModel, VelocityModel, wrap
+from naoslam.motion import OdometryModel, VelocityModel, finite_control, wrap
 
 
 class _Localiser:
@@ -66,6 +66,7 @@ class EkfLocalisation(_Localiser):
         return self.mu
 
     def predict(self, u: np.ndarray) -> None:
+        u = finite_control(u)
         g, v = self.motion.jacobians(self.mu, u)
         self.mu = self.motion.move(self.mu, u)
         self.sigma = g @ self.sigma @ g.T + v @ self.motion.control_noise(u) @ v.T
@@ -102,6 +103,7 @@ class EifLocalisation(_Localiser):
         return self._mu
 
     def predict(self, u: np.ndarray) -> None:
+        u = finite_control(u)
         mu = self._mu
         g, v = self.motion.jacobians(mu, u)
         self._mu = self.motion.move(mu, u)

@@ -47,6 +47,13 @@ class Measurement:
     bearing_std: float
     source: str = ""
 
+    def __post_init__(self) -> None:
+        values = (self.range_m, self.bearing_rad, self.range_std, self.bearing_std)
+        if not all(math.isfinite(v) for v in values) or self.range_m <= 0 or min(self.range_std, self.bearing_std) < 0:
+            raise ValueError(f"measurement of {self.signature!r}: range {self.range_m} m, bearing {self.bearing_rad} "
+                             f"rad, noise {self.range_std} m / {self.bearing_std} rad - the range must be positive, "
+                             "the noise not negative, all four finite")
+
 
 @dataclass(frozen=True)
 class RangeCalibration:

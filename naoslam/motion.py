@@ -16,6 +16,17 @@ def wrap(angle: float | np.ndarray) -> float | np.ndarray:
     return np.arctan2(np.sin(angle), np.cos(angle))
 
 
+def finite_control(u: np.ndarray) -> np.ndarray:
+    """``u`` as three floats, or a ValueError before any filter state changes: one NaN from an odometry glitch would
+    otherwise turn the pose and every covariance into NaN for good. With odometry controls, skip the step and build
+    the next control from the last good odometry pose: no motion is lost."""
+    control = np.asarray(u, dtype=float)
+    if control.shape != (3,) or not np.isfinite(control).all():
+        raise ValueError(f"control {np.asarray(u).tolist()} is not three finite numbers - the filter was not moved; "
+                         "skip this odometry step")
+    return control
+
+
 @dataclass(frozen=True)
 class OdometryModel:
     """Odometry as rot1, trans, rot2 between two odometry poses; alphas scale the control noise."""

@@ -303,3 +303,36 @@ def test_runtime_imports_no_training_libraries():
             "bad = [m for m in ('torch', 'ultralytics', 'albumentations', 'detector') if m in sys.modules]; "
             "sys.exit(1 if bad else 0)")
     assert subprocess.run([sys.executable, "-c", code]).returncode == 0
+
+
+def _filters() -> dict:
+    landmarks = {"bp": (2.0, 0.5), "yp": (1.5, -1.0)}
+    return {"ekf slam": EkfSlam(np.zeros(3), np.eye(3) * 1e-4, OdometryModel()),
+            "ekf localisation": EkfLocalisation(np.zeros(3), np.eye(3) * 0.01, landmarks, OdometryModel()),
+            "eif localisation": EifLocalisation(np.zeros(3), np.eye(3) * 0.01, landmarks, OdometryModel())}
+
+
+@pytest.mark.parametrize("name", ["ekf slam", "ekf localisation", "eif localisation"])
+@pytest.mark.parametrize("control", [[math.nan, 0.1, 0.0], [0.0, math.inf, 0.0], [0.0, 0.1]])
+def test_a_control_that_is_not_finite_is_refused_and_the_filter_runs_on(name, control):
+    """One NaN from an odometry glitch used to turn the pose and covariance into NaN for good."""
+    slam = _filters()[name]
+    slam.predict(np.array([0.1, 0.2, 0.0]))
+    before = {k: np.copy(v) for k, v in vars(slam).items() if isinstance(v, np.ndarray)}
+    with pytest.raises(ValueError, match="not three finite numbers"):
+        slam.predict(np.array(control))
+    assert all(np.array_equal(before[k], getattr(slam, k)) for k in before)
+    slam.predict(np.array([0.0, 0.2, 0.0]))
+    x, y, heading = 0.4 * math.cos(0.1), 0.4 * math.sin(0.1), 0.1  # the two good steps, as dead reckoning
+    assert np.allclose(slam.pose, (x, y, heading))
+    seen = Measurement(math.hypot(2.0 - x, 0.5 - y), math.atan2(0.5 - y, 2.0 - x) - heading, "bp", 0.9, 0.1, 0.02)
+    slam.update([seen])
+    assert np.allclose(slam.pose, (x, y, heading), atol=1e-3)
+
+
+@pytest.mark.parametrize("values", [(math.nan, 0.1, 0.1, 0.02), (2.0, math.inf, 0.1, 0.02), (0.0, 0.1, 0.1, 0.02),
+                                    (2.0, 0.1, -0.1, 0.02), (2.0, 0.1, 0.1, math.nan)])
+def test_a_measurement_that_is_not_finite_or_has_no_range_is_refused(values):
+    range_m, bearing, range_std, bearing_std = values
+    with pytest.raises(ValueError, match="the range must be positive, the noise not negative, all four finite"):
+        Measurement(range_m, bearing, "bp", 0.9, range_std, bearing_std)
