@@ -87,6 +87,13 @@ class CameraPose:
     pitch: float = 0.0
     roll: float = 0.0
 
+    def __post_init__(self) -> None:
+        fields = {"x": self.x, "y": self.y, "z": self.z, "yaw": self.yaw, "pitch": self.pitch, "roll": self.roll}
+        bad = {name: value for name, value in fields.items() if not math.isfinite(value)}
+        if bad:
+            raise ValueError(f"camera pose {bad} is not finite - leave the pose out for this frame (no ground-plane "
+                             "gate, no foot-row range) rather than pass a joint reading that failed")
+
     @property
     def position(self) -> np.ndarray:
         return np.array([self.x, self.y, self.z])

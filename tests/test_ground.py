@@ -126,3 +126,10 @@ def test_the_band_below_the_horizon_gives_the_whole_frames_detections():
             assert np.abs(np.subtract(a.box, b.box)).max() < 5.0
             compared += 1
     assert compared >= 10
+
+
+@pytest.mark.parametrize("field", ["z", "pitch", "roll", "yaw"])
+def test_a_camera_pose_that_is_not_finite_is_refused_by_name(field):
+    """A failed joint reading used to end deep in the gate as "cannot convert float NaN to integer"."""
+    with pytest.raises(ValueError, match=f"'{field}': nan"):
+        CameraPose(**{field: math.nan})
