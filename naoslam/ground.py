@@ -51,6 +51,13 @@ class GroundView:
     pose: CameraPose
     pole: PoleGeometry = PoleGeometry()
 
+    def __post_init__(self) -> None:
+        limit = math.pi / 2
+        if self.pose.z <= 0 or abs(self.pose.pitch) >= limit or abs(self.pose.roll) >= limit:
+            raise ValueError(f"camera height {self.pose.z} m, pitch {self.pose.pitch:.3f} rad, roll "
+                             f"{self.pose.roll:.3f} rad: the ground plane needs the camera above the floor and "
+                             "pitch and roll within +-90 deg - leave the pose out for this frame")
+
     @cached_property
     def _rotation(self) -> np.ndarray:
         return CameraPose(0.0, 0.0, self.pose.z, 0.0, self.pose.pitch, self.pose.roll).world_from_camera()

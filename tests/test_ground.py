@@ -133,3 +133,11 @@ def test_a_camera_pose_that_is_not_finite_is_refused_by_name(field):
     """A failed joint reading used to end deep in the gate as "cannot convert float NaN to integer"."""
     with pytest.raises(ValueError, match=f"'{field}': nan"):
         CameraPose(**{field: math.nan})
+
+
+@pytest.mark.parametrize("pose", [CameraPose(z=0.0), CameraPose(z=-0.5), CameraPose(z=0.5, pitch=3.0),
+                                  CameraPose(z=0.5, roll=-1.6)])
+def test_a_pose_with_no_ground_plane_is_refused_in_words(pose):
+    """Before: ZeroDivisionError at height 0, OverflowError when upside down, silent nonsense below the floor."""
+    with pytest.raises(ValueError, match="leave the pose out for this frame"):
+        GroundView(CAMERA, pose)
