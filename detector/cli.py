@@ -29,6 +29,27 @@ def _size(text: str) -> tuple[int, int]:
     return width, height
 
 
+def _confidence(text: str) -> float:
+    """A ``--conf`` value: a number between 0 and 1 (``naoslam.detector.valid_confidence``)."""
+    from naoslam.detector import valid_confidence
+
+    try:
+        return valid_confidence(float(text))
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(f"{text!r}: {error}") from None
+
+
+def _non_negative(text: str) -> int:
+    """A count of processes: a whole number, 0 or more."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{value}: give 0 or more")
+    return value
+
+
 def _threads(text: str) -> int | str:
     if text in ("auto", "shared", "all"):
         return text
@@ -131,7 +152,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="share of frames whose poles keep the nominal paint; the rest vary hue, saturation and "
                             f"value per band (default {SceneConfig.nominal_paint_share})")
     synth.add_argument("--preview", action="store_true", help="also write preview.png, a contact sheet with labels drawn")
-    synth.add_argument("--workers", type=int, default=None, help="render processes (default: every core)")
+    synth.add_argument("--workers", type=_non_negative, default=None, help="render processes (default: every core)")
     synth.add_argument("--force", action="store_true", help="replace --out if it exists")
 
     check = sub.add_parser("check", help="validate a dataset and print a summary and every problem")
@@ -160,7 +181,7 @@ def build_parser() -> argparse.ArgumentParser:
         augment.add_argument(f"--{name.replace('_', '-')}", type=float, default=None,
                              help=f"{text} (default {getattr(defaults, name)})")
     augment.add_argument("--preview", action="store_true", help="write augment_preview.png: originals beside copies")
-    augment.add_argument("--workers", type=int, default=None)
+    augment.add_argument("--workers", type=_non_negative, default=None)
     augment.add_argument("--force", action="store_true")
 
     split = sub.add_parser("split", help="re-split a dataset, stratified so every class reaches every split")
@@ -188,7 +209,8 @@ def build_parser() -> argparse.ArgumentParser:
                             "on the machine do not slow training down many times over; `all`: every core, waiting "
                             "threads spin (about 10 %% faster on an idle machine); a number; `auto` to re-time the "
                             "count while training")
-    train.add_argument("--workers", type=int, default=0, help="data-loader processes (default 0: best on 2 cores)")
+    train.add_argument("--workers", type=_non_negative, default=0,
+                       help="data-loader processes (default 0: best on 2 cores)")
     train.add_argument("--no-cache", action="store_true", help="do not cache decoded images in RAM")
     train.add_argument("--device", default="cpu",
                        help="cpu (default), a GPU index such as 0, several such as 0,1 (Ultralytics' DDP), or mps")
@@ -207,7 +229,7 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("--int8", action="store_true", help="also write a static INT8 copy")
     export.add_argument("--calib-data", type=Path, help="dataset whose training images calibrate INT8 (default --data)")
     export.add_argument("--reduce-range", action="store_true", help="7-bit INT8 weights, for x86 CPUs without VNNI")
-    export.add_argument("--conf", type=float, default=0.25, help="confidence threshold used when verifying")
+    export.add_argument("--conf", type=_confidence, default=0.25, help="confidence threshold used when verifying")
     export.add_argument("--dynamic", action="store_true",
                         help="any input size (multiples of 32), so the front end can run on the band below the "
                              "horizon alone when it knows the camera pose")
@@ -235,7 +257,7 @@ def build_parser() -> argparse.ArgumentParser:
                                "repeat to compare several (default: the shipped model)")
     _add_dataset_argument(evaluate, "held-out frames with labels (dataset folder or COCO export)")
     evaluate.add_argument("--split", default="test", help="split to evaluate (default test)")
-    evaluate.add_argument("--conf", type=float,
+    evaluate.add_argument("--conf", type=_confidence,
                           help="confidence threshold for the counts (default: the model's own, else 0.5)")
     evaluate.add_argument("--calibration", type=Path, help="calibration.json for range errors "
                                                            "(default: the one embedded in the ONNX model)")
@@ -253,7 +275,7 @@ def build_parser() -> argparse.ArgumentParser:
                                          "recording (default for --frames: the shipped model)")
     slam.add_argument("--calibration", type=Path, help="calibration.json (default: the one in the model)")
     _add_input_width_argument(slam)
-    slam.add_argument("--conf", type=float,
+    slam.add_argument("--conf", type=_confidence,
                       help="detections used from this confidence (default: the model's own threshold, else 0.85)")
     slam.add_argument("--no-camera-pose", action="store_true",
                       help="do not give the front end the camera's pose (rendered walk: the renderer's; recording: "
@@ -300,7 +322,7 @@ def build_parser() -> argparse.ArgumentParser:
     source.add_argument("--video", type=Path, help="video file or folder of frames in order: write an overlay MP4")
     predict.add_argument("--out", type=Path, required=True, help="dataset folder (--images) or video.mp4 (--video)")
     predict.add_argument("--model", type=Path, help="ONNX model (default: the shipped model)")
-    predict.add_argument("--conf", type=float, help="confidence threshold (default: the model's own)")
+    predict.add_argument("--conf", type=_confidence, help="confidence threshold (default: the model's own)")
     predict.add_argument("--format", choices=("yolov8", "coco"), default="yolov8", help="pre-annotation layout")
     _add_input_width_argument(predict, "with --video, to see what a robot running it smaller sees: ")
     predict.add_argument("--force", action="store_true")

@@ -15,6 +15,7 @@ from export.quantize import quantize_int8
 from export.verify import (FP32_TOLERANCE, INT8_TOLERANCE, compare, frontend_predict, median_latency_ms,
                            ultralytics_predict)
 from naoslam.atomic import write_json
+from naoslam.detector import valid_confidence
 
 #: Frames used to verify an export, and images used to calibrate INT8.
 VERIFY_FRAMES = 16
@@ -42,8 +43,7 @@ class ExportJob:
         if any(side < 32 or side % 32 for side in self.input_hw):
             raise ValueError(f"--imgsz {self.input_hw[0]} {self.input_hw[1]}: height and width must be positive "
                              "multiples of the stride 32 (the Nao's frames: 480 640)")
-        if not 0.0 < self.conf < 1.0:
-            raise ValueError(f"--conf {self.conf} must lie between 0 and 1")
+        valid_confidence(self.conf)
 
     @property
     def int8_path(self) -> Path:

@@ -12,6 +12,7 @@ from calibration.run import load_calibration
 from detector.starting_point import SHIPPED_WEIGHTS
 from export.onnx_export import read_info, write_metadata
 from naoslam.atomic import atomic_path
+from naoslam.detector import valid_confidence
 from naoslam.shipped import OPERATING_CONF_KEY, shipped_path
 
 #: The most the shipped files may add to the repository, in bytes.
@@ -20,8 +21,7 @@ SIZE_BUDGET = 40 * 1024 * 1024
 
 def ship(weights: Path, onnx_fp32: Path, onnx_int8: Path, calibration_json: Path, operating_conf: float) -> list[Path]:
     """Copy the three files into the package with calibration and threshold in both ONNX files; returns their paths."""
-    if not 0.0 < operating_conf < 1.0:
-        raise ValueError(f"--conf {operating_conf} must lie between 0 and 1")
+    valid_confidence(operating_conf)
     calibration = load_calibration(calibration_json)
     exported_width = read_info(onnx_fp32).input_hw[1]
     if calibration.input_width not in (None, exported_width):

@@ -32,6 +32,15 @@ DEFAULT_CONF = 0.25
 MASK_DIM = 32
 
 
+def valid_confidence(conf: float) -> float:
+    """``conf`` as a float when it can be a confidence threshold (between 0 and 1), else a ValueError: a threshold
+    of 5 would drop every detection and one of -1 keep every candidate box, both without a word."""
+    conf = float(conf)
+    if not 0.0 < conf < 1.0:
+        raise ValueError(f"confidence threshold {conf} must lie between 0 and 1")
+    return conf
+
+
 @dataclass(frozen=True)
 class RotatedBox:
     """Minimum-area rectangle around a mask: centre (px), width/height (px) and tilt of the height side from vertical."""
@@ -163,7 +172,7 @@ class LandmarkDetector:
                              f"{list(classes)} - train on a dataset whose data.yaml names them in this order")
         self._check_signature()
         self.input_hw = self.info.input_hw if input_width is None else self._scaled_input_hw(input_width)
-        self.conf = (self.stored_conf or DEFAULT_CONF) if conf is None else conf
+        self.conf = (self.stored_conf or DEFAULT_CONF) if conf is None else valid_confidence(conf)
         self.iou, self.max_det = iou, max_det
         self.input_name = self.session.get_inputs()[0].name
         self.engine = engine

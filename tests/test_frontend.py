@@ -156,3 +156,9 @@ def test_package_names_the_runtime_api_and_loads_it_on_first_use():
     import naoslam
     with pytest.raises(AttributeError, match="no attribute 'LandmarkDetecter'"):
         naoslam.LandmarkDetecter
+
+
+@pytest.mark.parametrize("conf", [0.0, 1.0, -1.0, 5.0, float("nan")])
+def test_a_threshold_outside_0_to_1_is_refused_by_the_runtime(conf):
+    with pytest.raises(ValueError, match="must lie between 0 and 1"):
+        LandmarkDetector(conf=conf)

@@ -181,7 +181,8 @@ def _refuse_overlap(out: Path, protect: tuple[Path, ...]) -> None:
     for guarded in protect:
         guarded = Path(guarded).resolve()
         if out == guarded or guarded in out.parents or out in guarded.parents:
-            raise ValueError(f"output {out} overlaps the input {guarded}: choose another path (inputs are never written)")
+            raise ValueError(f"output {out} overlaps the input {guarded}: choose another path "
+                             "(inputs are never written)")
 
 
 @contextmanager
