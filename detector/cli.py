@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 from augment.config import OPERATIONS, AugmentConfig
@@ -39,15 +40,19 @@ def _confidence(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{text!r}: {error}") from None
 
 
-def _non_negative(text: str) -> int:
-    """A count of processes: a whole number, 0 or more."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"{value}: give 0 or more")
-    return value
+def _whole_number(minimum: int) -> Callable[[str], int]:
+    """An argparse type for a count or a seed: a whole number, ``minimum`` or more."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"{value}: give {minimum} or more")
+        return value
+
+    return parse
 
 
 def _threads(text: str) -> int | str:
@@ -136,7 +141,7 @@ def build_parser() -> argparse.ArgumentParser:
     synth = sub.add_parser("synth", help="render a synthetic annotated pole dataset (Roboflow YOLOv8 layout)")
     synth.add_argument("--out", type=Path, required=True, help="output dataset folder (must not exist, or use --force)")
     synth.add_argument("--images", type=int, help="number of images (default 500; with --walk, all its frames)")
-    synth.add_argument("--seed", type=int, default=0, help="random seed: same seed, same dataset")
+    synth.add_argument("--seed", type=_whole_number(0), default=0, help="random seed: same seed, same dataset")
     synth.add_argument("--size", type=_size, default=(640, 480), help="image size WIDTHxHEIGHT (default 640x480)")
     synth.add_argument("--hfov", type=float, default=56.3, help="horizontal field of view in degrees (default 56.3)")
     synth.add_argument("--calibration-shots", action="store_true",
@@ -152,7 +157,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="share of frames whose poles keep the nominal paint; the rest vary hue, saturation and "
                             f"value per band (default {SceneConfig.nominal_paint_share})")
     synth.add_argument("--preview", action="store_true", help="also write preview.png, a contact sheet with labels drawn")
-    synth.add_argument("--workers", type=_non_negative, default=None, help="render processes (default: every core)")
+    synth.add_argument("--workers", type=_whole_number(0), default=None, help="render processes (default: every core)")
     synth.add_argument("--force", action="store_true", help="replace --out if it exists")
 
     check = sub.add_parser("check", help="validate a dataset and print a summary and every problem")
@@ -173,7 +178,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_dataset_argument(augment, "input dataset (never written)")
     augment.add_argument("--out", type=Path, required=True, help="output dataset folder")
     augment.add_argument("--copies", type=int, default=7, help="copies per training image (thesis: 7)")
-    augment.add_argument("--seed", type=int, default=0)
+    augment.add_argument("--seed", type=_whole_number(0), default=0)
     augment.add_argument("--ops", help=f"comma-separated operations to draw from (default all: {','.join(OPERATIONS)})")
     augment.add_argument("--config", type=Path, help="YAML with strength limits, e.g. `rotate_deg: 15`, `box_blur_px: 1.5`")
     defaults = AugmentConfig()
@@ -181,7 +186,7 @@ def build_parser() -> argparse.ArgumentParser:
         augment.add_argument(f"--{name.replace('_', '-')}", type=float, default=None,
                              help=f"{text} (default {getattr(defaults, name)})")
     augment.add_argument("--preview", action="store_true", help="write augment_preview.png: originals beside copies")
-    augment.add_argument("--workers", type=_non_negative, default=None)
+    augment.add_argument("--workers", type=_whole_number(0), default=None)
     augment.add_argument("--force", action="store_true")
 
     split = sub.add_parser("split", help="re-split a dataset, stratified so every class reaches every split")
@@ -189,7 +194,7 @@ def build_parser() -> argparse.ArgumentParser:
     split.add_argument("--out", type=Path, required=True)
     split.add_argument("--ratios", type=float, nargs=3, default=(0.7, 0.2, 0.1), metavar=("TRAIN", "TEST", "VALID"),
                        help="fractions for train, test and valid (thesis: 0.7 0.2 0.1)")
-    split.add_argument("--seed", type=int, default=0)
+    split.add_argument("--seed", type=_whole_number(0), default=0)
     split.add_argument("--force", action="store_true")
 
     train = sub.add_parser("train", help="train a YOLOv8 segmentation model on the CPU (offline, every core)")
@@ -203,13 +208,13 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--imgsz", type=int, default=640, help="training image size (default 640)")
     train.add_argument("--batch", type=int, default=8)
     train.add_argument("--patience", type=int, default=50, help="stop after this many epochs without improvement")
-    train.add_argument("--seed", type=int, default=0)
+    train.add_argument("--seed", type=_whole_number(0), default=0)
     train.add_argument("--threads", type=_threads,
                        help="torch threads: `shared` (default): every core, waiting threads sleep, so other programs "
                             "on the machine do not slow training down many times over; `all`: every core, waiting "
                             "threads spin (about 10 %% faster on an idle machine); a number; `auto` to re-time the "
                             "count while training")
-    train.add_argument("--workers", type=_non_negative, default=0,
+    train.add_argument("--workers", type=_whole_number(0), default=0,
                        help="data-loader processes (default 0: best on 2 cores)")
     train.add_argument("--no-cache", action="store_true", help="do not cache decoded images in RAM")
     train.add_argument("--device", default="cpu",
@@ -309,8 +314,8 @@ def build_parser() -> argparse.ArgumentParser:
                            "(default all; e.g. 2.5 or 1.25): what a slower CPU affords, on the same walk")
     slam.add_argument("--odometry-bias", type=float, default=1.25,
                       help="sim: reported stride per true stride (default 1.25: the Nao over-reports)")
-    slam.add_argument("--seed", type=int, default=0)
-    slam.add_argument("--compare", type=int, metavar="SEEDS",
+    slam.add_argument("--seed", type=_whole_number(0), default=0)
+    slam.add_argument("--compare", type=_whole_number(1), metavar="SEEDS",
                       help="also run every back end (and, on a simulated walk, the GTSAM smoother reference) on "
                            "SEEDS seeds and print the comparison table")
     slam.add_argument("--out", type=Path, required=True, help="folder for metrics.json, path.csv, map.json and plots")
@@ -331,7 +336,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--out", type=Path, default=Path("runs/demo"))
     demo.add_argument("--budget", choices=("fast", "full"), default="fast",
                       help="fast: about 15 minutes on two cores (default); full: the thesis's settings (days)")
-    demo.add_argument("--seed", type=int, default=0)
+    demo.add_argument("--seed", type=_whole_number(0), default=0)
     demo.add_argument("--threads", choices=("shared", "all"),
                       help="shared (default): every core, waiting threads sleep, so other programs do not slow "
                            "training down many times over; all: every core, waiting threads spin (about 10 %% faster "
