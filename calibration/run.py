@@ -56,9 +56,16 @@ def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv:
 
 
 def load_calibration(path: Path) -> RangeCalibration:
-    """Read calibration.json (as written by ``poles calibrate``)."""
-    data = json.loads(Path(path).read_text())
-    return RangeCalibration.from_dict(data.get("calibration", data))
+    """Read calibration.json (as written by ``poles calibrate``); any other file is refused in one line naming it."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such calibration file - write one with `poles calibrate`")
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        return RangeCalibration.from_dict(data.get("calibration", data))
+    except (UnicodeDecodeError, json.JSONDecodeError, AttributeError, KeyError, TypeError) as error:
+        raise ValueError(f"{path}: not a calibration written by `poles calibrate` ({type(error).__name__}: {error}) "
+                         "- write one with `poles calibrate`") from None
 
 
 def embed_calibration(model: Path, calibration: RangeCalibration) -> Path:

@@ -357,6 +357,15 @@ OTHER_CASES = [
                                                              "--resume"], d, "nothing to resume")),
     _plain("evaluate: garbage .onnx", lambda tmp, d: (["evaluate", "--model", str(_garbage(tmp, "m.onnx")), "--data",
                                                        str(d), "--out", str(tmp / "out")], tmp / "inputs", "m.onnx")),
+    _plain("evaluate: garbage --calibration", lambda tmp, d: (
+        ["evaluate", str(d), "--model", "colour-filter", "--calibration", str(_garbage(tmp, "c.json")), "--out",
+         str(tmp / "out")], tmp / "inputs", "c.json")),
+    _plain("evaluate: --calibration of another kind", lambda tmp, d: (
+        ["evaluate", str(d), "--model", "colour-filter", "--calibration", str(_truth_csv(tmp, '{"a": 1}')), "--out",
+         str(tmp / "out")], tmp, "ranges.csv: not a calibration")),
+    _plain("slam: missing --calibration", lambda tmp, d: (
+        ["slam", "--sim", "square", "--calibration", str(tmp / "none.json"), "--out", str(tmp / "out")], tmp,
+        "none.json: no such calibration file")),
     _plain("evaluate: unknown model kind", lambda tmp, d: (["evaluate", "--model", "model.h5", "--data", str(d),
                                                             "--out", str(tmp / "out")], d, "model.h5")),
     _plain("calibrate: range inf", _calibrate_truth("{image},{cls},inf", "ranges.csv:2")),
