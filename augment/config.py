@@ -30,6 +30,8 @@ class AugmentConfig:
                   "box_brightness": 1.0, "box_blur_px": 20.0, "min_area_px": 1e6}
         for name, high in limits.items():
             value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ValueError(f"augmentation setting {name} = {value!r} is not a number (e.g. rotate_deg: 15)")
             if not 0.0 <= value <= high:
                 raise ValueError(f"augmentation setting {name} = {value} is outside 0..{high:g}"
                                  " (limits are symmetric: give the magnitude, e.g. rotate_deg: 15 for +-15 deg)")
@@ -57,8 +59,8 @@ class AugmentConfig:
             data["ops"] = tuple(data["ops"]) if isinstance(data["ops"], (list, tuple)) else (data["ops"],)
         try:
             return cls(**data)
-        except TypeError as exc:
-            raise ValueError(f"{path}: {exc} - check the values' types") from None
+        except ValueError as exc:
+            raise ValueError(f"{path}: {exc}") from None
 
     def as_dict(self) -> dict:
         return asdict(self)

@@ -345,7 +345,11 @@ OTHER_CASES = [
     _plain("augment: config has an unknown key", lambda tmp, d: (
         COMMAND_ARGV["augment"](tmp, d) + ["--config", str(_truth_csv(tmp, "spin: 3\n"))], d, "unknown setting")),
     _plain("augment: config value of the wrong type", lambda tmp, d: (
-        COMMAND_ARGV["augment"](tmp, d) + ["--config", str(_truth_csv(tmp, "rotate_deg: abc\n"))], d, "ranges.csv")),
+        COMMAND_ARGV["augment"](tmp, d) + ["--config", str(_truth_csv(tmp, "rotate_deg: abc\n"))], d,
+        "ranges.csv: augmentation setting rotate_deg = 'abc' is not a number")),
+    _plain("augment: config value out of range", lambda tmp, d: (
+        COMMAND_ARGV["augment"](tmp, d) + ["--config", str(_truth_csv(tmp, "rotate_deg: 500\n"))], d,
+        "ranges.csv: augmentation setting rotate_deg = 500 is outside")),
     _plain("export: garbage .pt", lambda tmp, d: (["export", "--weights", str(_garbage(tmp, "best.pt")), "--data", str(d),
                                                    "--out", str(tmp / "out" / "m.onnx")], tmp / "inputs", "best.pt")),
     _plain("export: negative --imgsz", lambda tmp, d: (COMMAND_ARGV["export"](tmp, d) + ["--imgsz", "96", "-128"], d,
