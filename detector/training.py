@@ -10,6 +10,8 @@ from __future__ import annotations
 import difflib
 import os
 import shutil
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -137,15 +139,16 @@ def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | 
             read_checkpoint(Path(weights))  # a clear error for a file that is not a checkpoint
         dataset = open_dataset(data, progress=progress)
         _clear_unfinished_run(out)
-        data_yaml = training_view(dataset, out / "dataset")
-        model = YOLO(str(weights) if weights else f"{settings.model}.yaml", task="segment")
-        options = asdict(settings)
-        for name in ("model", "threads", "adaptive_threads"):
-            options.pop(name)
-        options["time"] = options.pop("time_hours")
-        options.update(options.pop("hyperparameters"))
-        _train(model, tuner, data=str(data_yaml), project=str(out.parent), name=out.name, exist_ok=True,
-               amp=False, plots=False, deterministic=True, trainer=CpuSegmentationTrainer, **options)
+        with _removed_unless_resumable(out):
+            data_yaml = training_view(dataset, out / "dataset")
+            model = YOLO(str(weights) if weights else f"{settings.model}.yaml", task="segment")
+            options = asdict(settings)
+            for name in ("model", "threads", "adaptive_threads"):
+                options.pop(name)
+            options["time"] = options.pop("time_hours")
+            options.update(options.pop("hyperparameters"))
+            _train(model, tuner, data=str(data_yaml), project=str(out.parent), name=out.name, exist_ok=True,
+                   amp=False, plots=False, deterministic=True, trainer=CpuSegmentationTrainer, **options)
     plot_training_curves(out / "results.csv", out / "training_curves.png")
     return out
 
@@ -157,6 +160,18 @@ def _train(model: YOLO, tuner: ThreadTuner | None, **options) -> None:
         model.add_callback("on_train_batch_end", tuner)
     with bars_as_log_lines():
         model.train(**options)
+
+
+@contextmanager
+def _removed_unless_resumable(out: Path) -> Iterator[None]:
+    """Remove the run folder ``out`` when the block fails before Ultralytics saved a ``last.pt`` to resume from (a
+    device that is not there, Ctrl-C in the first epoch): nothing is left behind that ``--resume`` cannot use."""
+    try:
+        yield
+    except BaseException:
+        if not (out / "weights" / "last.pt").is_file():
+            shutil.rmtree(out, ignore_errors=True)
+        raise
 
 
 def _clear_unfinished_run(out: Path) -> None:

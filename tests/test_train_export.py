@@ -133,6 +133,23 @@ def test_export_never_writes_over_its_inputs_even_with_force(where, tiny_weights
     assert weights.read_bytes() == before and not (dataset_copy / "model.onnx").exists()
 
 
+@pytest.mark.parametrize("saved_an_epoch", [False, True])
+def test_a_run_that_fails_leaves_only_what_resume_can_use(saved_an_epoch, synth_dataset, tmp_path, monkeypatch):
+    """A device that is not there (`--device 0` without a GPU) used to leave RUN/dataset behind."""
+    import detector.training as training
+
+    def fail(model, tuner, **options):
+        if saved_an_epoch:
+            (tmp_path / "run" / "weights").mkdir(parents=True)
+            (tmp_path / "run" / "weights" / "last.pt").write_bytes(b"epoch 1")
+        raise RuntimeError("Invalid CUDA 'device=0' requested")
+
+    monkeypatch.setattr(training, "_train", fail)
+    with pytest.raises(RuntimeError, match="device=0"):
+        train_model(synth_dataset, tmp_path / "run", TrainSettings(model="yolov8n-seg", epochs=1, imgsz=64))
+    assert (tmp_path / "run").exists() == saved_an_epoch
+
+
 def test_an_interrupted_run_resumes_where_it_stopped(synth_dataset, tmp_path, monkeypatch):
     import detector.training as training
 
