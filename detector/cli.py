@@ -547,9 +547,11 @@ def _evaluate(args: argparse.Namespace) -> int:
     calibration = load_calibration(args.calibration) if args.calibration else None
     rows = []
     models = args.model or ["shipped"]
+    predictors = [make_predictor(model, args.imgsz, calibration) for model in models]  # every model checked first
+    for predictor, label in zip(predictors, _column_labels(models, [p.name for p in predictors])):
+        predictor.name = label
     with output_folder(args.out, args.force, _existing(args.data, args.calibration, *map(Path, models))) as folder:
-        for model in models:
-            predictor = make_predictor(model, args.imgsz, calibration)
+        for predictor in predictors:
             out = folder / predictor.name if len(models) > 1 else folder
             conf = args.conf if args.conf is not None else predictor.operating_conf or FALLBACK_CONF
             rows.append(evaluate(predictor, args.data, out, args.split, conf))
@@ -572,6 +574,15 @@ def _predict(args: argparse.Namespace) -> int:
         print(f"wrote {result['frames']} frames to {result['video']} and the contact sheet {result['sheet']}"
               + ("" if result["ranges"] else " (no ranges drawn: the model has no calibration for this input width)"))
     return 0
+
+
+def _column_labels(models: list[str], names: list[str]) -> list[str]:
+    """Each evaluated model's table column and folder: its file name, or, where two share one, ``FOLDER_NAME``
+    (``runs/a/best.onnx`` -> ``a_best.onnx``), numbered where that is shared too; two models never share a folder."""
+    labels = [name if names.count(name) == 1 or not Path(model).parent.name else f"{Path(model).parent.name}_{name}"
+              for model, name in zip(models, names)]
+    return [label if labels[:index].count(label) == 0 else f"{label}-{labels[:index].count(label) + 1}"
+            for index, label in enumerate(labels)]
 
 
 #: ``poles evaluate``'s threshold for a model that stores none.

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 import math
 from dataclasses import replace
 
@@ -395,3 +396,17 @@ def test_a_models_calibration_holds_only_at_the_input_width_it_was_measured_at(c
     assert "measured at 640 px input, the model runs at 320 px" in capsys.readouterr().err
     assert main(["calibrate", str(calibration_shots), "--imgsz", "320", "--out", str(tmp_path / "labels.json")]) == 2
     assert "--imgsz is a model's input width" in capsys.readouterr().err
+
+
+def test_evaluate_keeps_models_of_the_same_file_name_apart(synth_dataset, tiny_onnx, tmp_path, capsys):
+    """`runs/a/best.onnx` against `runs/b/best.onnx` wrote both into one folder, the second over the first."""
+    for run in ("a", "b"):
+        (tmp_path / run).mkdir()
+        shutil.copyfile(tiny_onnx, tmp_path / run / "best.onnx")
+    out = tmp_path / "eval"
+    assert main(["evaluate", str(synth_dataset), "--model", str(tmp_path / "a" / "best.onnx"), "--model",
+                 str(tmp_path / "b" / "best.onnx"), "--model", "colour-filter", "--model", "colour-filter",
+                 "--out", str(out)]) == 0
+    folders = sorted(p.name for p in out.iterdir())
+    assert folders == ["a_best.onnx", "b_best.onnx", "colour-filter", "colour-filter-2"]
+    assert [json.loads((out / f / "metrics.json").read_text())["model"] for f in folders] == folders
