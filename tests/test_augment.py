@@ -189,3 +189,11 @@ def test_stratified_split_ratios_and_classes(synth_dataset, tmp_path):
             assert all(cls in classes for classes in per_split.values()), (cls, per_split)
     with pytest.raises(ValueError, match="three non-negative"):
         split_dataset(synth_dataset, tmp_path / "bad", (0.7, -0.2, 0.5))
+
+
+def test_a_small_dataset_still_gets_a_validation_image(tmp_path):
+    """Three images at 70/20/10 gave valid 0, which `poles train` then refused, telling the user to run split."""
+    from detector.synth.generate import SynthJob, generate_dataset
+
+    three = generate_dataset(tmp_path / "three", SynthJob(3, seed=9, width=160, height=120), workers=1, progress=False)
+    assert split_dataset(three, tmp_path / "resplit", seed=0) == {"train": 1, "test": 1, "valid": 1}

@@ -24,6 +24,10 @@ def stratified_assignment(samples: list[Sample], ratios: dict[str, float], seed:
     targets = {split: int(share[split] * len(samples)) for split in share}
     for split in sorted(share, key=lambda s: share[s] * len(samples) - targets[s], reverse=True)[: len(samples) - sum(targets.values())]:
         targets[split] += 1
+    if len(samples) >= len(share):  # every split asked for gets an image (a small dataset's valid split would not)
+        for split in [s for s in share if targets[s] == 0]:
+            targets[max(targets, key=targets.get)] -= 1
+            targets[split] += 1
     kinds = [{i.cls for i in s.instances} or {"(none)"} for s in samples]  # negatives are spread like a class
     class_images = Counter(c for classes in kinds for c in classes)
     order = np.random.default_rng(seed).permutation(len(samples))
