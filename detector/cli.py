@@ -59,13 +59,10 @@ def _threads(text: str) -> int | str:
     if text in ("auto", "shared", "all"):
         return text
     try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--threads {text!r}: give a number of threads, `shared`, `all` or `auto`") \
-            from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"--threads {value}: at least 1")
-    return value
+        return _whole_number(1)(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"--threads {text!r}: give a number of threads (1 or more), `shared`, `all` "
+                                         "or `auto`") from None
 
 
 def _add_dataset_argument(parser: argparse.ArgumentParser, description: str) -> None:

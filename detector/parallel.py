@@ -28,6 +28,10 @@ def ordered_map(function: Callable[[T], R], items: Iterable[T], workers: int, ch
         pool.terminate()
 
 
+#: Signals a forked worker holds from its birth until ``_plain_signals`` has set how it takes them.
+_WORKER_SIGNALS = {signal.SIGTERM, signal.SIGINT}
+
+
 def _pool(workers: int) -> mp.pool.Pool:
     """Worker processes, forked where the system can.
 
@@ -46,10 +50,6 @@ def _pool(workers: int) -> mp.pool.Pool:
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, held)
         gc.unfreeze()
-
-
-#: Signals a forked worker holds from its birth until ``_plain_signals`` has set how it takes them.
-_WORKER_SIGNALS = {signal.SIGTERM, signal.SIGINT}
 
 
 def _plain_signals() -> None:

@@ -6,7 +6,7 @@ pixel (u, v) measured from the top-left corner of the image, so the centre of pi
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
@@ -88,8 +88,7 @@ class CameraPose:
     roll: float = 0.0
 
     def __post_init__(self) -> None:
-        fields = {"x": self.x, "y": self.y, "z": self.z, "yaw": self.yaw, "pitch": self.pitch, "roll": self.roll}
-        bad = {name: value for name, value in fields.items() if not math.isfinite(value)}
+        bad = {name: value for name, value in asdict(self).items() if not math.isfinite(value)}
         if bad:
             raise ValueError(f"camera pose {bad} is not finite - leave the pose out for this frame (no ground-plane "
                              "gate, no foot-row range) rather than pass a joint reading that failed")
