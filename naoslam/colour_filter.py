@@ -16,6 +16,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from naoslam.frames import bgr_frame
+
 #: OpenCV HSV ranges (H 0..179): (hue ranges, minimum saturation, maximum saturation, minimum value).
 HSV_RANGES: dict[str, tuple[tuple[tuple[int, int], ...], int, int, int]] = {
     "p": (((145, 179), (0, 4)), 90, 255, 70),
@@ -99,8 +101,7 @@ class ColourFilter:
         return self.lut[(q[..., 0] << (2 * LUT_BITS)) | (q[..., 1] << LUT_BITS) | q[..., 2]]
 
     def __call__(self, frame: np.ndarray) -> list[ColourDetection]:
-        if frame is None or frame.ndim != 3 or frame.shape[2] != 3 or frame.size == 0:
-            raise ValueError("the colour filter needs an HxWx3 BGR uint8 frame")
+        frame = bgr_frame(frame)
         colours = self.classify(frame)
         pink = (colours & BITS["p"]) > 0
         found = []

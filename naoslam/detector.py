@@ -18,6 +18,7 @@ import onnxruntime as ort
 
 from naoslam.camera import NAO_HFOV_DEG, CameraPose, PinholeCamera
 from naoslam.engines import ENGINES, OpenVinoForward
+from naoslam.frames import bgr_frame
 from naoslam.ground import GroundView
 from naoslam.landmarks import CLASSES
 from naoslam.measurement import RangeCalibration
@@ -269,13 +270,7 @@ class LandmarkDetector:
 
     def prepare(self, frame: np.ndarray, input_hw: tuple[int, int] | None = None) -> tuple[np.ndarray, Letterbox]:
         """The network input tensor (1, 3, H, W) float32 RGB in 0..1 for a BGR (or grey) uint8 frame."""
-        frame = np.asarray(frame)
-        if frame.size == 0 or frame.ndim not in (2, 3):
-            raise ValueError(f"frame of shape {frame.shape} is empty or not an image - pass an HxWx3 BGR uint8 array")
-        if frame.ndim == 2 or frame.shape[2] == 1:
-            frame = cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR)
-        elif frame.shape[2] == 4:
-            frame = cv2.cvtColor(frame, cv2.COLOR_BGRA2BGR)
+        frame = bgr_frame(frame)
         box = self.letterbox(frame.shape[:2], input_hw)
         blob = cv2.dnn.blobFromImage(box.apply(frame), 1.0 / 255.0, swapRB=True)
         return blob, box
@@ -294,6 +289,7 @@ class LandmarkDetector:
         for this frame, ``gate_rejected`` counts them over all frames), and a model exported with ``--dynamic``
         runs only on the band below the horizon, where every pole must be (``crop=False``: the whole frame).
         """
+        frame = bgr_frame(frame)
         view = None if camera_pose is None else \
             GroundView(PinholeCamera(frame.shape[1], frame.shape[0], self.hfov_deg), camera_pose)
         top = view.band_top() if view is not None and crop and self.any_input_size else 0

@@ -12,6 +12,8 @@ import pytest
 
 from export.onnx_export import export_onnx, read_info, write_metadata
 from export.verify import compare, frontend_predict, ultralytics_predict
+from naoslam.camera import CameraPose
+from naoslam.colour_filter import ColourFilter
 from naoslam.detector import Detection, LandmarkDetector, Letterbox, RotatedBox, _mask_in_box
 
 
@@ -100,6 +102,25 @@ def test_grey_and_four_channel_frames_are_accepted(tiny_onnx, synth_dataset):
 def test_empty_frame_is_refused(tiny_onnx, frame):
     with pytest.raises(ValueError, match="empty or not an image"):
         LandmarkDetector(tiny_onnx)(frame)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64, np.uint16])
+def test_frame_that_is_not_uint8_is_refused_by_both_front_ends(tiny_onnx, synth_dataset, dtype):
+    """A 0..1 float frame would reach the network 255 times too dark and silently find nothing."""
+    frame = _frames(synth_dataset, 1)[0]
+    scaled = (frame / 255.0 if dtype != np.uint16 else frame.astype(np.uint16) * 257).astype(dtype)
+    with pytest.raises(ValueError, match=f"dtype {np.dtype(dtype)} - pass a uint8 frame"):
+        LandmarkDetector(tiny_onnx)(scaled, camera_pose=CameraPose(z=0.5, pitch=0.3))
+    with pytest.raises(ValueError, match=f"dtype {np.dtype(dtype)} - pass a uint8 frame"):
+        ColourFilter()(scaled)
+
+
+def test_colour_filter_takes_grey_and_four_channel_frames(synth_dataset):
+    colour_filter = ColourFilter()
+    frame = next(f for f in _frames(synth_dataset, 20) if colour_filter(f))
+    assert colour_filter(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)) == []  # no colour, no pole
+    assert [d.name for d in colour_filter(cv2.cvtColor(frame, cv2.COLOR_BGR2BGRA))] == \
+        [d.name for d in colour_filter(frame)]
 
 
 def test_missing_and_corrupt_models_are_named(tmp_path):
