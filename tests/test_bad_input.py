@@ -312,6 +312,13 @@ def _sheet_name_taken(tmp: Path) -> tuple[list[str], Path, str]:
     return ["predict", "--video", str(video), "--out", str(tmp / "overlay.mp4")], tmp, "overlay.png"
 
 
+def _roboflow_zip(tmp: Path, data: Path) -> tuple[list[str], Path, str]:
+    """The archive Roboflow downloads, given where its unzipped folder belongs."""
+    archive = Path(shutil.make_archive(str(tmp / "inputs" / "poles.v1i.yolov8"), "zip", data))
+    return ["train", str(archive), "--out", str(tmp / "out"), "--epochs", "1", "--imgsz", "64"], archive.parent, \
+        "unzip poles.v1i.yolov8.zip -d poles.v1i.yolov8"
+
+
 def _swap_odometry_rows(folder: Path) -> None:
     path = folder / "Odometry.dat"
     lines = path.read_text().splitlines()
@@ -394,6 +401,7 @@ OTHER_CASES = [
     _plain("slam: a frame that cannot be decoded", lambda tmp, d: _undecodable_frame(tmp)),
     _plain("slam: --out is the recording's folder", lambda tmp, d: _slam_into_the_recording(tmp)),
     _plain("calibrate: --plot is a frame of the dataset", _plot_over_a_frame),
+    _plain("train: the Roboflow zip, not its folder", _roboflow_zip),
     _plain("predict: --out is the input video", lambda tmp, d: _video_onto_itself(tmp)),
     _plain("predict: the contact sheet's name is taken", lambda tmp, d: _sheet_name_taken(tmp)),
     _plain("slam: --confusion-rate above 1", lambda tmp, d: (["slam", "--sim", "square", "--confusion-rate", "2",

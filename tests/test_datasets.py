@@ -293,3 +293,11 @@ def test_real_poles_read_clean(real_poles):
     report = check_dataset(real_poles, progress=False)
     assert report.errors == []
     assert sum(len(s.instances) for s in report.dataset.samples) == 14
+
+
+def test_check_of_a_folder_that_is_no_dataset_prints_the_error_alone(tmp_path, capsys):
+    """No empty per-split table above the one line that says what the folder lacks."""
+    assert main(["check", str(tmp_path)]) == 1
+    out = capsys.readouterr().out
+    assert "neither data.yaml nor a COCO" in out
+    assert "split" not in out and "images" not in out

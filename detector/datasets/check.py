@@ -81,22 +81,8 @@ def print_report(report: CheckReport, console: Console | None = None, show_notes
     """Print the per-split table and a summary per kind of problem (count and first examples); the whole list is
     written to ``full_list`` (atomically) when the summary leaves some out. Returns that file, if written."""
     console = console or make_console()
-    table = Table(title=f"dataset {report.dataset.root}")
-    for column in ("split", "images", "empty", "box-only", "unreadable", *CLASSES, "poles", "image sizes"):
-        table.add_column(column, justify="left" if column in ("split", "image sizes") else "right")
-    box_only = {p.path for p in report.problems if BOX_ONLY in p.message}
-    for split in SPLITS:
-        samples = report.dataset.split(split)
-        if not samples:
-            continue
-        per_class = Counter(i.cls for s in samples for i in s.instances)
-        negatives = sum(1 for s in samples if not s.instances and s.label not in box_only)
-        boxes = sum(1 for s in samples if s.label in box_only)
-        unreadable = sum(1 for s in samples if s.image in report.unreadable)
-        sizes = ", ".join(f"{k} ({v})" for k, v in report.sizes.get(split, Counter()).most_common(3))
-        table.add_row(split, str(len(samples)), str(negatives), str(boxes), str(unreadable),
-                      *(str(per_class[c]) for c in CLASSES), str(sum(per_class.values())), sizes)
-    console.print(table)
+    if report.dataset.samples:
+        console.print(_split_table(report))
     shown = [p for p in report.problems if show_notes or p.severity != "note"]
     kinds: dict[tuple[str, str], list[Problem]] = {}
     for problem in shown:
@@ -118,6 +104,26 @@ def print_report(report: CheckReport, console: Console | None = None, show_notes
         console.print(f"every problem, one per line: {full_list}")
         return full_list
     return None
+
+
+def _split_table(report: CheckReport) -> Table:
+    """One row per split: images, empty and box-only frames, unreadable images, poles per class, image sizes."""
+    table = Table(title=f"dataset {report.dataset.root}")
+    for column in ("split", "images", "empty", "box-only", "unreadable", *CLASSES, "poles", "image sizes"):
+        table.add_column(column, justify="left" if column in ("split", "image sizes") else "right")
+    box_only = {p.path for p in report.problems if BOX_ONLY in p.message}
+    for split in SPLITS:
+        samples = report.dataset.split(split)
+        if not samples:
+            continue
+        per_class = Counter(i.cls for s in samples for i in s.instances)
+        negatives = sum(1 for s in samples if not s.instances and s.label not in box_only)
+        boxes = sum(1 for s in samples if s.label in box_only)
+        unreadable = sum(1 for s in samples if s.image in report.unreadable)
+        sizes = ", ".join(f"{k} ({v})" for k, v in report.sizes.get(split, Counter()).most_common(3))
+        table.add_row(split, str(len(samples)), str(negatives), str(boxes), str(unreadable),
+                      *(str(per_class[c]) for c in CLASSES), str(sum(per_class.values())), sizes)
+    return table
 
 
 def listing_path(dataset: Dataset, fixed_copy: Path | None = None) -> Path:

@@ -49,6 +49,9 @@ def load_dataset(path: str | Path, renames: dict[str, str] | None = None) -> Dat
 
     if path.is_dir() and find_coco_files(path):
         return load_coco(path, renames)
+    if path.is_file() and path.suffix.lower() == ".zip":
+        raise DatasetError([Problem("error", path, None, "a zip archive, not a dataset folder",
+                                    f"unzip it first (unzip {path.name} -d {path.stem}) and give that folder")])
     raise DatasetError([Problem("error", path, None, "neither data.yaml nor a COCO _annotations.coco.json found",
                                 "point to a Roboflow 'YOLOv8' or 'COCO' segmentation export folder")])
 
