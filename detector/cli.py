@@ -200,12 +200,13 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--model", help="yolov8n-seg (default), yolov8s-seg or yolov8m-seg")
     train.add_argument("--weights", help="checkpoint to fine-tune from (default: the shipped pole model for "
                                          "yolov8n-seg), or `scratch` to train from the architecture alone")
-    train.add_argument("--epochs", type=int, default=100)
+    train.add_argument("--epochs", type=_whole_number(1), default=100, help="epochs to train (default 100; --time overrides)")
     train.add_argument("--time", type=float, help="train for this many hours instead (Ultralytics fits the epochs)")
-    train.add_argument("--imgsz", type=int, default=640, help="training image size (default 640)")
-    train.add_argument("--batch", type=int, default=8)
-    train.add_argument("--patience", type=int, default=50, help="stop after this many epochs without improvement")
-    train.add_argument("--seed", type=_whole_number(0), default=0)
+    train.add_argument("--imgsz", type=_whole_number(32), default=640, help="training image size (default 640)")
+    train.add_argument("--batch", type=_whole_number(1), default=8, help="images per batch (default 8)")
+    train.add_argument("--patience", type=_whole_number(0), default=50,
+                       help="stop after this many epochs without improvement (default 50; 0: never stop early)")
+    train.add_argument("--seed", type=_whole_number(0), default=0, help="random seed (default 0)")
     train.add_argument("--threads", type=_threads,
                        help="torch threads: `shared` (default): every core, waiting threads sleep, so other programs "
                             "on the machine do not slow training down many times over; `all`: every core, waiting "

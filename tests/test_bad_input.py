@@ -490,7 +490,9 @@ def test_an_interrupted_command_leaves_nothing_and_says_one_line(signal_name, st
                                   ["synth", "--out", "{tmp}/out", "--workers", "-3"],
                                   ["augment", "{tmp}", "--out", "{tmp}/out", "--workers", "two"],
                                   ["split", "--data", "{tmp}", "--out", "{tmp}/out", "--seed", "-1"],
-                                  ["slam", "--sim", "square", "--out", "{tmp}/out", "--compare", "-2"]])
+                                  ["slam", "--sim", "square", "--out", "{tmp}/out", "--compare", "-2"],
+                                  ["train", "{tmp}", "--out", "{tmp}/out", "--patience", "-1"],
+                                  ["train", "{tmp}", "--out", "{tmp}/out", "--batch", "0"]])
 def test_a_threshold_or_process_count_out_of_range_is_refused_before_anything_runs(argv, tmp_path, capsys):
     """A --conf of -1 pre-labelled every candidate box (4,162 'poles' on 14 frames), one of 5 made SLAM run blind."""
     with pytest.raises(SystemExit) as exited:
