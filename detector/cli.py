@@ -200,7 +200,8 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--model", help="yolov8n-seg (default), yolov8s-seg or yolov8m-seg")
     train.add_argument("--weights", help="checkpoint to fine-tune from (default: the shipped pole model for "
                                          "yolov8n-seg), or `scratch` to train from the architecture alone")
-    train.add_argument("--epochs", type=_whole_number(1), default=100, help="epochs to train (default 100; --time overrides)")
+    train.add_argument("--epochs", type=_whole_number(1), default=100,
+                       help="epochs to train (default 100; --time overrides)")
     train.add_argument("--time", type=float, help="train for this many hours instead (Ultralytics fits the epochs)")
     train.add_argument("--imgsz", type=_whole_number(32), default=640, help="training image size (default 640)")
     train.add_argument("--batch", type=_whole_number(1), default=8, help="images per batch (default 8)")
@@ -321,7 +322,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     predict = sub.add_parser("predict", help="pre-label new frames for Roboflow, or draw a model's view on a video")
     source = predict.add_mutually_exclusive_group(required=True)
-    source.add_argument("--images", type=Path, help="folder of unlabelled frames: write pre-annotations to --out")
+    source.add_argument("--images", type=Path,
+                        help="folder of unlabelled frames (subfolders too): write pre-annotations to --out")
     source.add_argument("--video", type=Path, help="video file or folder of frames in order: write an overlay MP4")
     predict.add_argument("--out", type=Path, required=True, help="dataset folder (--images) or video.mp4 (--video)")
     predict.add_argument("--model", type=Path, help="ONNX model (default: the shipped model)")

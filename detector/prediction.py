@@ -33,17 +33,17 @@ FOLDER_FPS = 15.0
 SHEET_TILES = 12
 
 
-def frames_in(source: Path) -> tuple[int, float, Iterator[tuple[str, np.ndarray]]]:
-    """(frame count, frames per second, (name, BGR frame) in order) of a folder of images or a video file.
-
-    A folder's frames are all checked to decode first, so a bad one is refused before any model runs."""
+def frames_in(source: Path, subfolders: bool = False) \
+        -> tuple[int, float, Iterator[tuple[str, np.ndarray, Path | None]]]:
+    """(frame count, frames per second, (name, BGR frame, its file or None for a video's) in order) of a folder of
+    images or a video file. With ``subfolders`` a folder's subfolders are read too (``walk1/0001.jpg`` is named
+    ``walk1_0001.jpg``). A folder's frames are all checked to decode first, so a bad one is refused before any model
+    runs."""
     source = Path(source)
     if source.is_dir():
-        paths = sorted(p for p in source.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
-        if not paths:
-            raise ValueError(f"{source}: no images ({', '.join(sorted(IMAGE_SUFFIXES))}) in it")
-        require_decodable(paths)
-        return len(paths), FOLDER_FPS, ((p.name, cv2.imread(str(p), cv2.IMREAD_COLOR)) for p in paths)
+        named = _images_by_name(source, subfolders)
+        require_decodable(list(named.values()))
+        return len(named), FOLDER_FPS, ((name, cv2.imread(str(p), cv2.IMREAD_COLOR), p) for name, p in named.items())
     capture = cv2.VideoCapture(str(source))
     count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) if capture.isOpened() else 0
     if count <= 0:
@@ -56,11 +56,28 @@ def frames_in(source: Path) -> tuple[int, float, Iterator[tuple[str, np.ndarray]
             ok, frame = capture.read()
             if not ok:
                 break
-            yield f"{source.stem}_{index:05d}.jpg", frame
+            yield f"{source.stem}_{index:05d}.jpg", frame, None
             index += 1
         capture.release()
 
     return count, fps, decode()
+
+
+def _images_by_name(folder: Path, subfolders: bool) -> dict[str, Path]:
+    """A folder's images (hidden files and folders left out), by the name each gets in a flat output: its path
+    below ``folder`` joined by ``_``. Two images that would get one name are refused."""
+    paths = sorted(path for path in folder.glob("**/*" if subfolders else "*")
+                   if path.is_file() and path.suffix.lower() in IMAGE_SUFFIXES
+                   and not any(part.startswith(".") for part in path.relative_to(folder).parts))
+    if not paths:
+        raise ValueError(f"{folder}: no images ({', '.join(sorted(IMAGE_SUFFIXES))}) in it")
+    named: dict[str, Path] = {}
+    for path in paths:
+        name = "_".join(path.relative_to(folder).parts)
+        if name in named:
+            raise ValueError(f"{named[name]} and {path} would both be named {name} - rename one; nothing was written")
+        named[name] = path
+    return named
 
 
 def detections_to_instances(detections: list[Detection], frame_hw: tuple[int, int]) -> list[Instance]:
@@ -83,25 +100,24 @@ def prelabel(images: Path, out: Path, model: Path | None = None, conf: float | N
     if fmt not in ("yolov8", "coco"):
         raise ValueError(f"--format {fmt!r}: choose yolov8 or coco")
     detector = LandmarkDetector(model, conf=conf)
-    count, _, frames = frames_in(images)
-    folder = Path(images) if Path(images).is_dir() else None
+    count, _, frames = frames_in(images, subfolders=True)
     counts = {"frames": 0, "poles": 0, "empty": 0}
 
-    def labelled() -> Iterator[tuple[str, np.ndarray, list[Instance]]]:
-        for name, frame in show_progress(frames, "pre-labelling", "img", total=count, enabled=progress):
+    def labelled() -> Iterator[tuple[str, np.ndarray, Path | None, list[Instance]]]:
+        for name, frame, path in show_progress(frames, "pre-labelling", "img", total=count, enabled=progress):
             instances = detections_to_instances(detector(frame), frame.shape[:2])
             counts["frames"] += 1
             counts["poles"] += len(instances)
             counts["empty"] += not instances
-            yield name, frame, instances
+            yield name, frame, path, instances
 
     protect = Path(images).resolve()
     if fmt == "yolov8":
         with DatasetWriter(out, force=force, protect=(protect,)) as writer:
-            for name, frame, instances in labelled():
-                writer.add("train", name, folder / name if folder else _jpeg(frame), instances)
+            for name, frame, path, instances in labelled():
+                writer.add("train", name, path or _jpeg(frame), instances)
     else:
-        _write_coco(out, labelled(), folder, force, protect)
+        _write_coco(out, labelled(), force, protect)
     return {**counts, "conf": detector.conf, "model": str(detector.path), "format": fmt,
             "out": str(Path(out).resolve())}
 
@@ -110,17 +126,17 @@ def _jpeg(frame: np.ndarray) -> bytes:
     return cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, 95])[1].tobytes()
 
 
-def _write_coco(out: Path, labelled: Iterable[tuple[str, np.ndarray, list[Instance]]], folder: Path | None,
-                force: bool, protect: Path) -> None:
-    """Roboflow's COCO layout: ``train/`` holding the images (copied from ``folder`` when the frames came from one)
-    and ``_annotations.coco.json`` (pixel polygons)."""
+def _write_coco(out: Path, labelled: Iterable[tuple[str, np.ndarray, Path | None, list[Instance]]], force: bool,
+                protect: Path) -> None:
+    """Roboflow's COCO layout: ``train/`` holding the images (copied from their files when the frames came from a
+    folder) and ``_annotations.coco.json`` (pixel polygons)."""
     categories = [{"id": i, "name": code, "supercategory": "poles"} for i, code in enumerate(CLASSES)]
     images, annotations = [], []
     with output_folder(out, force, (protect,)) as tmp:
         (tmp / "train").mkdir()
-        for index, (name, frame, instances) in enumerate(labelled):
+        for index, (name, frame, path, instances) in enumerate(labelled):
             target = tmp / "train" / name
-            shutil.copyfile(folder / name, target) if folder else target.write_bytes(_jpeg(frame))
+            shutil.copyfile(path, target) if path else target.write_bytes(_jpeg(frame))
             h, w = frame.shape[:2]
             images.append({"id": index, "file_name": name, "width": w, "height": h})
             for inst in instances:
@@ -155,7 +171,8 @@ def overlay_video(source: Path, out: Path, model: Path | None = None, conf: floa
     tmp = out.with_name(f".{out.stem}.partial.mp4")
     out.parent.mkdir(parents=True, exist_ok=True)
     try:
-        for index, (name, frame) in enumerate(show_progress(frames, "overlay", "frame", total=count, enabled=progress)):
+        for index, (name, frame, _) in enumerate(show_progress(frames, "overlay", "frame", total=count,
+                                                               enabled=progress)):
             if writer is None:
                 size = frame.shape[1::-1]
                 writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)

@@ -46,6 +46,31 @@ def test_prelabels_check_clean_and_round_trip(fmt, frames, tmp_path):
     assert classes_by_image(tmp_path / "converted") == found
 
 
+def test_prelabel_reads_subfolders_and_names_each_frame_by_its_path(frames, tmp_path):
+    """A student's frames come in a folder per walk; none may be left out without a word."""
+    walks = tmp_path / "walks"
+    for walk, names in (("walk1", ["00_bp.jpg", "99_empty.jpg"]), ("walk2", ["01_gp.jpg"])):
+        (walks / walk).mkdir(parents=True)
+        for name in names:
+            (walks / walk / name).write_bytes((frames / name).read_bytes())
+    (walks / "03_pb.jpg").write_bytes((frames / "03_pb.jpg").read_bytes())
+    assert main(["predict", "--images", str(walks), "--out", str(tmp_path / "out")]) == 0
+    found = classes_by_image(tmp_path / "out")
+    assert set(found) == {"03_pb", "walk1_00_bp", "walk1_99_empty", "walk2_01_gp"}
+    assert (tmp_path / "out" / "train" / "images" / "walk1_00_bp.jpg").read_bytes() == \
+        (frames / "00_bp.jpg").read_bytes()
+
+
+def test_prelabel_refuses_two_frames_that_would_get_one_name(frames, tmp_path, capsys):
+    walks = tmp_path / "walks"
+    (walks / "a").mkdir(parents=True)
+    (walks / "a" / "b.jpg").write_bytes((frames / "00_bp.jpg").read_bytes())
+    (walks / "a_b.jpg").write_bytes((frames / "00_bp.jpg").read_bytes())
+    assert main(["predict", "--images", str(walks), "--out", str(tmp_path / "out")]) == 2
+    assert "would both be named a_b.jpg - rename one" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
 def test_prelabel_refuses_an_output_inside_the_frames(frames, capsys):
     assert main(["predict", "--images", str(frames), "--out", str(frames / "labels")]) == 2
     assert "overlaps the input" in capsys.readouterr().err
