@@ -1,7 +1,7 @@
 """``poles export``: ONNX export, verification against PyTorch, optional INT8 copy, and a report."""
 from __future__ import annotations
 
-import os
+from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -14,7 +14,7 @@ from export.onnx_export import NAO_INPUT_HW, export_onnx
 from export.quantize import quantize_int8
 from export.verify import (FP32_TOLERANCE, INT8_TOLERANCE, compare, frontend_predict, median_latency_ms,
                            ultralytics_predict)
-from naoslam.atomic import write_json
+from naoslam.atomic import atomic_path, write_json
 from naoslam.detector import valid_confidence
 
 #: Frames used to verify an export, and images used to calibrate INT8.
@@ -54,11 +54,13 @@ class ExportJob:
         return self.out.with_suffix(".export.json")
 
 
-def dataset_images(data: Path, splits: tuple[str, ...], limit: int) -> list[Path]:
-    """Up to ``limit`` image paths from the given splits, spread evenly over them in file order."""
+def dataset_images(data: Path, splits: tuple[str, ...], limit: int, flag: str) -> list[Path]:
+    """Up to ``limit`` image paths from the given splits, spread evenly over them in file order; ``flag`` is the
+    option that chose ``data``, named in the error when the splits hold no image."""
     samples = [s for s in open_dataset(data, progress=False).samples if s.split in splits and s.image]
     if not samples:
-        raise ValueError(f"{data}: no images in the {'/'.join(splits)} split(s)")
+        raise ValueError(f"{data}: no images in the {'/'.join(splits)} split(s) - give {flag} a dataset that has "
+                         "some; nothing was written")
     picks = np.linspace(0, len(samples) - 1, min(limit, len(samples))).round().astype(int)
     return [samples[i].image for i in sorted(set(picks))]
 
@@ -91,12 +93,14 @@ def run_export(job: ExportJob) -> dict:
     inputs = tuple(path for path in (job.weights, data, job.calib_data) if path is not None)
     for output in (job.out, job.report_path) + ((job.int8_path,) if job.int8 else ()):
         check_output_file(output, job.force, inputs)
-    frames = read_frames(dataset_images(data, ("valid", "test"), VERIFY_FRAMES))
-    unverified = job.out.with_name(f".{job.out.name}.unverified")
-    try:
-        export_onnx(job.weights, unverified, job.input_hw, force=True, dynamic=job.dynamic)
+    frames = read_frames(dataset_images(data, ("valid", "test"), VERIFY_FRAMES, "--data"))
+    calibration = dataset_images(job.calib_data or data, ("train",), CALIBRATION_IMAGES,
+                                 "--calib-data" if job.calib_data else "--data (or --calib-data)") if job.int8 else []
+    with ExitStack() as outputs:  # every file lands together, after the report is made, or none does
+        fp32_path = outputs.enter_context(atomic_path(job.out))
+        export_onnx(job.weights, fp32_path, job.input_hw, force=True, dynamic=job.dynamic)
         reference = ultralytics_predict(job.weights, frames, job.input_hw, job.conf)
-        fp32 = frontend_predict(unverified, frames, job.conf)
+        fp32 = frontend_predict(fp32_path, frames, job.conf)
         agreement = compare(reference, fp32, job.conf, FP32_TOLERANCE.margin)
         report = {"weights": str(job.weights), "onnx": str(job.out), "input_hw": list(job.input_hw),
                   "dynamic": job.dynamic,
@@ -105,20 +109,17 @@ def run_export(job: ExportJob) -> dict:
         if report["fp32_problems"]:
             raise ExportMismatch(f"{job.weights}: the ONNX export disagrees with PyTorch on {len(frames)} frames: "
                                  + "; ".join(report["fp32_problems"]) + " - nothing was written")
-        os.replace(unverified, job.out)
-    finally:
-        unverified.unlink(missing_ok=True)
-    models = {"fp32": job.out}
-    if job.int8:
-        calibration = dataset_images(job.calib_data or data, ("train",), CALIBRATION_IMAGES)
-        quantize_int8(job.out, job.int8_path, calibration, reduce_range=job.reduce_range)
-        int8 = compare(fp32, frontend_predict(job.int8_path, frames, job.conf), job.conf, INT8_TOLERANCE.margin)
-        report.update(int8=str(job.int8_path), calibration_images=len(calibration), int8_vs_fp32=int8.as_dict(),
-                      int8_problems=int8.problems(INT8_TOLERANCE))
-        models["int8"] = job.int8_path
-    report["latency_ms"] = median_latency_ms(models, frames[:8])
-    report["recommended"] = _recommend(report)
-    write_json(job.report_path, report)
+        models = {"fp32": fp32_path}
+        if job.int8:
+            int8_path = outputs.enter_context(atomic_path(job.int8_path))
+            quantize_int8(fp32_path, int8_path, calibration, reduce_range=job.reduce_range)
+            int8 = compare(fp32, frontend_predict(int8_path, frames, job.conf), job.conf, INT8_TOLERANCE.margin)
+            report.update(int8=str(job.int8_path), calibration_images=len(calibration), int8_vs_fp32=int8.as_dict(),
+                          int8_problems=int8.problems(INT8_TOLERANCE))
+            models["int8"] = int8_path
+        report["latency_ms"] = median_latency_ms(models, frames[:8])
+        report["recommended"] = _recommend(report)
+        write_json(job.report_path, report)
     return report
 
 

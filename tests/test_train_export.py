@@ -4,6 +4,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -119,6 +120,29 @@ def test_run_export_fails_and_writes_nothing_when_onnx_disagrees(tiny_weights, s
     with pytest.raises(ExportMismatch, match="box IoU down to"):
         run_export(job)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_run_export_writes_nothing_when_int8_cannot_be_made(tiny_weights, dataset_copy, tmp_path, monkeypatch):
+    """The FP32 file used to land before INT8 was tried: a failed --int8 left a model without its report."""
+    import export.run
+
+    out = tmp_path / "out"
+    no_train = dataset_copy.parent / "no-train"
+    shutil.copytree(dataset_copy, no_train)
+    for label in (no_train / "train").rglob("*.*"):
+        label.unlink()
+    job = ExportJob(tiny_weights, out / "m.onnx", (96, 128), dataset_copy, int8=True, calib_data=no_train, conf=0.001)
+    with pytest.raises(ValueError, match="give --calib-data a dataset that has some; nothing was written"):
+        run_export(job)
+    assert not out.exists()
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(export.run, "quantize_int8", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        run_export(replace(job, calib_data=None))
+    assert list(out.iterdir()) == []
 
 
 @pytest.mark.parametrize("where", ["the checkpoint", "inside the dataset"])
