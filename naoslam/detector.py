@@ -157,7 +157,8 @@ class LandmarkDetector:
     pole codes); a model trained on other names is refused. Pass ``classes=None`` to accept any model.
     ``input_width`` runs a model exported with ``--dynamic`` (the shipped ones are) at a smaller scale than it was
     exported at, its height in proportion: fewer pixels for a slower CPU, and poles under about 16 px wide lost
-    (README, "Engines and the on-robot budget"). None keeps the model's own input size.
+    (README, "Engines and the on-robot budget"). None keeps the model's own input size. ``threads`` None runs one
+    inference thread per core; ``iou`` is the NMS overlap (0-1] above which the lower-scored box of a class is dropped.
     """
 
     def __init__(self, model: Path | str | None = None, conf: float | None = None, iou: float = 0.7,
@@ -165,6 +166,12 @@ class LandmarkDetector:
                  engine: str = "onnxruntime", input_width: int | None = None):
         if engine not in ENGINES:
             raise ValueError(f"engine {engine!r} is not one of {', '.join(ENGINES)}")
+        if threads is not None and threads < 1:
+            raise ValueError(f"threads {threads}: give 1 or more, or None for one per core")
+        if not 0.0 < iou <= 1.0:
+            raise ValueError(f"NMS IoU threshold {iou} must lie above 0 and at most 1 (default 0.7)")
+        if max_det < 1:
+            raise ValueError(f"max_det {max_det}: keep at least 1 detection per frame (default 300)")
         self.path = resolve_model(model) if model is not None else shipped_model()
         self.session = load_session(self.path, threads)
         self.info = ModelInfo.from_metadata(self.session.get_modelmeta().custom_metadata_map, self.path)

@@ -123,6 +123,16 @@ def test_colour_filter_takes_grey_and_four_channel_frames(synth_dataset):
         [d.name for d in colour_filter(frame)]
 
 
+@pytest.mark.parametrize("setting, message", [({"threads": 0}, "threads 0: give 1 or more"),
+                                              ({"threads": -1}, "threads -1: give 1 or more"),
+                                              ({"iou": 1.5}, "IoU threshold 1.5"), ({"iou": 0.0}, "IoU threshold 0.0"),
+                                              ({"max_det": 0}, "max_det 0")])
+def test_runtime_settings_out_of_range_are_refused(tiny_onnx, setting, message):
+    """An IoU threshold above 1 suppresses nothing and a thread count of -1 went to onnxruntime unchecked."""
+    with pytest.raises(ValueError, match=message):
+        LandmarkDetector(tiny_onnx, **setting)
+
+
 def test_missing_and_corrupt_models_are_named(tmp_path):
     with pytest.raises(FileNotFoundError, match="poles export"):
         LandmarkDetector(tmp_path / "missing.onnx")
