@@ -137,6 +137,9 @@ def load_session(path: Path | str, threads: int | None = None) -> ort.InferenceS
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such model file - export one with `poles export --weights best.pt`")
+    if path.suffix == ".pt":
+        raise ValueError(f"{path}: a PyTorch checkpoint; the runtime runs its ONNX export - "
+                         f"`poles export --weights {path} --out {path.with_suffix('.onnx')}`")
     options = ort.SessionOptions()
     options.intra_op_num_threads = threads or os.cpu_count() or 1
     options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL

@@ -142,6 +142,11 @@ def test_missing_and_corrupt_models_are_named(tmp_path):
         LandmarkDetector(corrupt)
 
 
+def test_a_checkpoint_given_as_the_model_is_sent_to_poles_export(tiny_weights):
+    with pytest.raises(ValueError, match=f"a PyTorch checkpoint.*poles export --weights {tiny_weights} --out "):
+        LandmarkDetector(tiny_weights)
+
+
 def test_model_with_other_class_names_is_refused(tiny_onnx, tmp_path):
     other = write_metadata(tiny_onnx, replace(read_info(tiny_onnx), classes=("ball", "robot", "goal", "a", "b", "c")),
                            tmp_path / "other.onnx")
