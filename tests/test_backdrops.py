@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from detector.cli import main
-from detector.synth.backdrops import (FEATHER_REACH_PX, RENDER_MIN_WIDTH, composite, frame_cast, load_backdrop, sample_look,
-                                      scan_backdrops)
+from detector.synth.backdrops import (FEATHER_REACH_PX, RENDER_MAX_WIDTH, RENDER_MIN_WIDTH, composite, frame_cast,
+                                      load_backdrop, sample_look, scan_backdrops)
 from detector.synth.generate import SynthJob, generate_dataset
 from detector.synth.render import render_scene
 from detector.synth.scene import sample_scene
@@ -48,6 +48,12 @@ def test_scan_finds_images_in_subfolders_and_ignores_other_files(backdrop_folder
 def test_small_frames_are_upscaled_to_the_detector_width(backdrop_folder):
     image = load_backdrop(backdrop_folder / "office" / "small.png")
     assert image.shape == (480, RENDER_MIN_WIDTH, 3) and image.dtype == np.float32
+
+
+def test_photographs_larger_than_a_robot_frame_are_downscaled_to_it(tmp_path):
+    photo = load_backdrop(_write_frame(tmp_path / "phone.jpg", 4032, 3024, 3))
+    assert photo.shape == (960, RENDER_MAX_WIDTH, 3)
+    assert load_backdrop(_write_frame(tmp_path / "nao.jpg", 1280, 960, 4)).shape == (960, 1280, 3)
 
 
 def test_composite_changes_only_the_objects_and_their_soft_edges():
