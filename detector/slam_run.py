@@ -178,12 +178,13 @@ def _odometry_rows(odometry_csv: Path) -> tuple[list[list[float]], list[CameraPo
         raise ValueError(f"{odometry_csv}: no such odometry file - pass the robot's odometry as a CSV with the "
                          "header t,x,y,theta (README, 'The naoslam runtime')")
     with odometry_csv.open(newline="", encoding="utf-8-sig", errors="replace") as handle:
-        reader = csv.DictReader(handle)
+        reader = csv.DictReader(handle, skipinitialspace=True)  # "t, x, y, theta" as people write it
         if not reader.fieldnames or not {"t", "x", "y", "theta"} <= set(reader.fieldnames):
             raise ValueError(f"{odometry_csv}:1: header must be t,x,y,theta (got {reader.fieldnames})")
         columns = ["t", "x", "y", "theta"] + (list(POSE_COLUMNS) if set(POSE_COLUMNS) <= set(reader.fieldnames)
                                                else [])
-        for line, row in enumerate(reader, start=2):
+        for row in reader:
+            line = reader.line_num  # the file's own line: blank lines are skipped, not counted out
             try:
                 values = [float(row[k]) for k in columns]
                 if not all(math.isfinite(v) for v in values):

@@ -78,13 +78,26 @@ def test_a_recording_merges_frames_and_odometry_with_the_offset(tmp_path):
     assert np.allclose(result.poses[-1], [0.15, 0.0, 0.04], atol=1e-9)
 
 
-def test_a_recording_with_a_bad_odometry_line_is_named(tmp_path):
+@pytest.mark.parametrize("text, line", [("t,x,y,theta\n0.0,0,0,0\n0.4,far,0,0\n", 3),
+                                        ("t,x,y,theta\n0.0,0,0,0\n\n\n0.4,far,0,0\n", 5)])
+def test_a_recording_with_a_bad_odometry_line_is_named(tmp_path, text, line):
+    """By the line an editor shows: blank lines count."""
     frames, odometry = _recording(tmp_path)
-    odometry.write_text("t,x,y,theta\n0.0,0,0,0\n0.4,far,0,0\n")
+    odometry.write_text(text)
     calibration = RangeCalibration(PowerLaw(50, -1), PowerLaw(220, -1), colour_law=PowerLaw(6.2, -1.0, 0.03))
-    with pytest.raises(ValueError, match=r"odometry.csv:3: not finite numbers"):
+    with pytest.raises(ValueError, match=rf"odometry.csv:{line}: not finite numbers"):
         recorded_sequence(frames, odometry, FrontEnd("colour-filter", calibration), 0.3)
 
+
+def test_a_recording_reads_odometry_written_with_spaces_after_the_commas(tmp_path):
+    frames, odometry = _recording(tmp_path)
+    plain = odometry.read_text()
+    odometry.write_text(plain.replace(",", ", "))
+    calibration = RangeCalibration(PowerLaw(50, -1), PowerLaw(220, -1), colour_law=PowerLaw(6.2, -1.0, 0.03))
+    spaced = recorded_sequence(frames, odometry, FrontEnd("colour-filter", calibration), 0.3)
+    odometry.write_text(plain)
+    assert run_slam(spaced).poses.tolist() == \
+        run_slam(recorded_sequence(frames, odometry, FrontEnd("colour-filter", calibration), 0.3)).poses.tolist()
 
 
 def test_a_recording_without_its_odometry_file_is_named(tmp_path):
