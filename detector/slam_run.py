@@ -14,7 +14,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from detector.datasets.io import require_decodable
+from detector.datasets.io import csv_rows, require_decodable
 from naoslam.atomic import atomic_path, write_json
 from naoslam.camera import CameraPose
 from naoslam.ekf_slam import SlamConfig
@@ -177,27 +177,21 @@ def _odometry_rows(odometry_csv: Path) -> tuple[list[list[float]], list[CameraPo
     if not odometry_csv.is_file():
         raise ValueError(f"{odometry_csv}: no such odometry file - pass the robot's odometry as a CSV with the "
                          "header t,x,y,theta (README, 'The naoslam runtime')")
-    with odometry_csv.open(newline="", encoding="utf-8-sig", errors="replace") as handle:
-        reader = csv.DictReader(handle, skipinitialspace=True)  # "t, x, y, theta" as people write it
-        if not reader.fieldnames or not {"t", "x", "y", "theta"} <= set(reader.fieldnames):
-            raise ValueError(f"{odometry_csv}:1: header must be t,x,y,theta (got {reader.fieldnames})")
-        columns = ["t", "x", "y", "theta"] + (list(POSE_COLUMNS) if set(POSE_COLUMNS) <= set(reader.fieldnames)
-                                               else [])
-        for row in reader:
-            line = reader.line_num  # the file's own line: blank lines are skipped, not counted out
-            try:
-                values = [float(row[k]) for k in columns]
-                if not all(math.isfinite(v) for v in values):
-                    raise ValueError
-            except (TypeError, ValueError):
-                raise ValueError(f"{odometry_csv}:{line}: not finite numbers in {','.join(columns)}") from None
-            if len(values) > 4:
-                poses.append(CameraPose(z=values[4], pitch=values[5], roll=values[6]))
-                values = values[:4]
-            if rows and values[0] <= rows[-1][0]:
-                raise ValueError(f"{odometry_csv}:{line}: time {values[0]:g} does not come after the previous row's "
-                                 f"{rows[-1][0]:g} - sort the file by t and drop repeated rows")
-            rows.append(values)
+    for line, row in csv_rows(odometry_csv, ("t", "x", "y", "theta")):
+        columns = ("t", "x", "y", "theta") + (POSE_COLUMNS if all(name in row for name in POSE_COLUMNS) else ())
+        try:
+            values = [float(row[k]) for k in columns]
+            if not all(math.isfinite(v) for v in values):
+                raise ValueError
+        except (TypeError, ValueError):
+            raise ValueError(f"{odometry_csv}:{line}: not finite numbers in {','.join(columns)}") from None
+        if len(values) > 4:
+            poses.append(CameraPose(z=values[4], pitch=values[5], roll=values[6]))
+            values = values[:4]
+        if rows and values[0] <= rows[-1][0]:
+            raise ValueError(f"{odometry_csv}:{line}: time {values[0]:g} does not come after the previous row's "
+                             f"{rows[-1][0]:g} - sort the file by t and drop repeated rows")
+        rows.append(values)
     if len(rows) < 2:
         raise ValueError(f"{odometry_csv}: needs at least two odometry rows, found {len(rows)}")
     return rows, poses or None

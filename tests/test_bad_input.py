@@ -383,6 +383,9 @@ OTHER_CASES = [
     _plain("calibrate: range 0", _calibrate_truth("{image},{cls},0", "ranges.csv:2")),
     _plain("calibrate: range not a number", _calibrate_truth("{image},{cls},far", "ranges.csv:2")),
     _plain("calibrate: unknown class", _calibrate_truth("{image},ball,1.0", "ranges.csv:2")),
+    _plain("calibrate: a row without its range", _calibrate_truth("{image}", "ranges.csv:2: no value for class, "
+                                                                             "range_m")),
+    _plain("slam: odometry CSV with an empty value", lambda tmp, d: _odometry(tmp, "t,x,y,theta\n0,0,0,0\n1,1,,0\n")),
     _plain("calibrate: --embed into garbage", lambda tmp, d: (
         ["calibrate", "--data", str(d), "--out", str(tmp / "out"), "--embed", str(_garbage(tmp, "m.onnx"))],
         tmp / "inputs", "m.onnx")),

@@ -1,6 +1,7 @@
 """Read a dataset in the Roboflow "YOLOv8" segmentation layout (or a COCO export), and write the layout atomically."""
 from __future__ import annotations
 
+import csv
 import json
 import os
 import shutil
@@ -31,6 +32,22 @@ def require_decodable(paths: list[Path]) -> None:
         more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
         raise ValueError(f"{bad[0]}{more}: cannot be decoded as an image - remove it or re-save it; "
                          "nothing was written")
+
+
+def csv_rows(path: Path, columns: tuple[str, ...]) -> Iterator[tuple[int, dict[str, str]]]:
+    """(line, row) of a person's CSV whose header holds ``columns`` (other columns allowed): UTF-8 with or without a
+    byte-order mark, spaces after the commas allowed, blank lines skipped and counted, so ``line`` is the one an
+    editor shows. A missing column or a row that leaves one of ``columns`` empty is refused by its line."""
+    with path.open(newline="", encoding="utf-8-sig", errors="replace") as handle:
+        reader = csv.DictReader(handle, skipinitialspace=True)
+        if not reader.fieldnames or not set(columns) <= set(reader.fieldnames):
+            raise ValueError(f"{path}:1: header must be {','.join(columns)} (got {reader.fieldnames})")
+        for row in reader:
+            empty = [column for column in columns if not row.get(column)]
+            if empty:
+                raise ValueError(f"{path}:{reader.line_num}: no value for {', '.join(empty)} - give every row "
+                                 f"{','.join(columns)}")
+            yield reader.line_num, row
 
 
 def load_dataset(path: str | Path, renames: dict[str, str] | None = None) -> Dataset:

@@ -6,11 +6,11 @@ Read from ``annotations.json`` (written by ``poles synth``; the real-poles set h
 """
 from __future__ import annotations
 
-import csv
 import json
 import math
 from pathlib import Path
 
+from detector.datasets.io import csv_rows
 from detector.datasets.model import Dataset, DatasetError, Problem
 from detector.datasets.names import canonical_class
 
@@ -60,27 +60,23 @@ def _from_csv(dataset: Dataset, path: Path) -> dict[str, ImageTruth]:
         raise FileNotFoundError(f"{path}: no such truth CSV (columns image,class,range_m)")
     by_image = {s.image.name: s for s in dataset.samples}
     truth: dict[str, ImageTruth] = {}
-    with path.open(newline="", encoding="utf-8-sig", errors="replace") as handle:
-        reader = csv.DictReader(handle)
-        if not reader.fieldnames or not {"image", "class", "range_m"} <= set(reader.fieldnames):
-            raise ValueError(f"{path}:1: header must be image,class,range_m (got {reader.fieldnames})")
-        for line, row in enumerate(reader, start=2):
-            sample = by_image.get(Path(row["image"]).name)
-            cls = canonical_class(row["class"])
-            try:
-                range_m = float(row["range_m"])
-            except (TypeError, ValueError):
-                raise ValueError(f"{path}:{line}: range_m {row['range_m']!r} is not a number") from None
-            if not math.isfinite(range_m) or range_m <= 0:
-                raise ValueError(f"{path}:{line}: range_m {row['range_m']!r} must be a positive distance in metres")
-            if cls is None:
-                raise ValueError(f"{path}:{line}: class {row['class']!r} names no landmark - use one of bp gp yp pb pg py")
-            if sample is None:
-                raise ValueError(f"{path}:{line}: image {row['image']!r} is not in {dataset.root}")
-            matches = [i for i, inst in enumerate(sample.instances) if inst.cls == cls]
-            if len(matches) != 1:
-                raise ValueError(f"{path}:{line}: {row['image']} has {len(matches)} labelled {cls!r} poles; "
-                                 "a CSV row needs exactly one")
-            entry = truth.setdefault(sample.image.name, [None] * len(sample.instances))
-            entry[matches[0]] = {"cls": cls, "range_m": range_m}
+    for line, row in csv_rows(path, ("image", "class", "range_m")):
+        sample = by_image.get(Path(row["image"]).name)
+        cls = canonical_class(row["class"])
+        try:
+            range_m = float(row["range_m"])
+        except ValueError:
+            raise ValueError(f"{path}:{line}: range_m {row['range_m']!r} is not a number") from None
+        if not math.isfinite(range_m) or range_m <= 0:
+            raise ValueError(f"{path}:{line}: range_m {row['range_m']!r} must be a positive distance in metres")
+        if cls is None:
+            raise ValueError(f"{path}:{line}: class {row['class']!r} names no landmark - use one of bp gp yp pb pg py")
+        if sample is None:
+            raise ValueError(f"{path}:{line}: image {row['image']!r} is not in {dataset.root}")
+        matches = [i for i, inst in enumerate(sample.instances) if inst.cls == cls]
+        if len(matches) != 1:
+            raise ValueError(f"{path}:{line}: {row['image']} has {len(matches)} labelled {cls!r} poles; "
+                             "a CSV row needs exactly one")
+        entry = truth.setdefault(sample.image.name, [None] * len(sample.instances))
+        entry[matches[0]] = {"cls": cls, "range_m": range_m}
     return truth
