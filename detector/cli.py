@@ -473,7 +473,8 @@ def _augment(args: argparse.Namespace) -> int:
                               preview=args.preview, force=args.force, workers=args.workers)
     print(f"train images: {summary['train_images_in']} -> {summary['train_images_out']}; instances in copies kept "
           f"{summary['instances_kept']}, dropped {summary['instances_dropped']} (clipped away or too small)")
-    print("operations used: " + ", ".join(f"{k} {v}" for k, v in sorted(summary["operations"].items())))
+    print("operations used: " + (", ".join(f"{k} {v}" for k, v in sorted(summary["operations"].items()))
+                                 or "none"))
     if "preview" in summary:
         print(f"preview: {summary['preview']}")
     return 0
