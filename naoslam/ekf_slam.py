@@ -27,7 +27,8 @@ import numpy as np
 from naoslam import observation
 from naoslam.association import CandidatePool, Hypothesis, choose
 from naoslam.measurement import Measurement
-from naoslam.motion import OdometryModel, VelocityModel, finite_control, wrap
+from naoslam.motion import (STRIDE_SCALE_STD, TURN_SCALE_STD, OdometryModel, VelocityModel, finite_control,
+                             scaled_step, wrap)
 
 OUTLIER_RANGE_M = 0.4
 OUTLIER_BEARING_RAD = math.pi / 3
@@ -54,8 +55,8 @@ class SlamConfig:
     min_separation_m: float = 0.5
     association: str = "nearest"
     self_calibrate: bool = True
-    stride_scale_std: float = 0.3
-    turn_scale_std: float = 0.1
+    stride_scale_std: float = STRIDE_SCALE_STD
+    turn_scale_std: float = TURN_SCALE_STD
 
     def __post_init__(self) -> None:
         if self.min_views < 1:
@@ -159,11 +160,7 @@ class EkfSlam:
         finite is refused (``finite_control``) and the filter is left as it was."""
         u = finite_control(u)
         r = self.robot_size
-        pose = self.mu[:3].copy()
-        stride, turn = self.odometry_scales
-        true_u = self.motion.scaled(u, stride, turn)
-        g, v = self.motion.jacobians(pose, true_u)
-        self.mu[:3] = self.motion.move(pose, true_u)
+        self.mu[:3], g, g_scales, pose_noise = scaled_step(self.motion, self.mu[:3].copy(), u, *self.odometry_scales)
         if self.config.linearisation != "standard":
             # Huang et al.: linearise at the previous *predicted* pose, not the updated one.
             dx, dy = self.mu[:2] - self._previous_predicted[:2]
@@ -172,11 +169,10 @@ class EkfSlam:
         f = np.eye(r)
         f[:3, :3] = g
         if self.config.self_calibrate:
-            d_stride, d_turn = self.motion.scale_directions(u)
-            f[:3, 3], f[:3, 4] = v @ d_stride, v @ d_turn
+            f[:3, 3:5] = g_scales
         sigma = self.sigma
         sigma[:r, :r] = f @ sigma[:r, :r] @ f.T
-        sigma[:3, :3] += v @ self.motion.control_noise(true_u) @ v.T
+        sigma[:3, :3] += pose_noise
         sigma[:r, r:] = f @ sigma[:r, r:]
         sigma[r:, :r] = sigma[:r, r:].T
 

@@ -2,121 +2,160 @@
 
 As in the 2018 thesis: the same odometry motion model and range-bearing measurements; the EIF keeps the
 information matrix Omega = Sigma^-1 and vector xi = Omega mu, so its correction is additive
-(Omega += H^T Q^-1 H) and its prediction needs the inversion. As in SLAM, no landmark takes two detections of one
-frame: of a second box on the same pole, only the detection nearest the prediction is used.
+(Omega += H^T Q^-1 H) and its prediction needs the inversion.
+
+Beyond the thesis, and as in SLAM (``naoslam.ekf_slam``), by default:
+- the state carries the odometry's stride and turn scales after the pose (x, y, theta, stride, turn), so a walk
+  engine that misreports its stride is corrected by the landmarks instead of pulling the pose away from them with
+  an over-confident covariance; ``odometry_scale_std=None`` keeps the thesis's pose-only state;
+- association is by geometry with the class as evidence (``association.choose``): a detection whose class the
+  front end swapped (green bands taken for blue) still corrects the pose when exactly one landmark explains it. No
+  landmark takes two detections of one frame: of a second box on the same pole, only the detection nearest the
+  prediction is used. Without a gate the class is the landmark (the thesis's known correspondences).
 """
 from __future__ import annotations
 
-from collections import Counter
 from collections.abc import Callable
 
 import numpy as np
 
 from naoslam import observation
+from naoslam.association import Hypothesis, choose
 from naoslam.measurement import Measurement
-from naoslam.motion import OdometryModel, VelocityModel, finite_control, wrap
+from naoslam.motion import (STRIDE_SCALE_STD, TURN_SCALE_STD, OdometryModel, VelocityModel, finite_control,
+                            scaled_step, wrap)
 
 
 class _Localiser:
-    def __init__(self, landmarks: dict[str, tuple[float, float]], motion: OdometryModel | VelocityModel,
-                 gate: float | None = observation.CHI2_2DOF_99):
+    def __init__(self, pose: np.ndarray, pose_cov: np.ndarray, landmarks: dict[str, tuple[float, float]],
+                 motion: OdometryModel | VelocityModel, gate: float | None,
+                 odometry_scale_std: tuple[float, float] | None):
         self.map = {k: np.asarray(v, dtype=float) for k, v in landmarks.items()}
         self.motion = motion
         self.gate = gate
-
-    def _linearise(self, pose: np.ndarray, m: Measurement):
-        landmark = self.map.get(m.signature)
-        if landmark is None:
-            return None
-        z = np.array([m.range_m, m.bearing_rad])
-        nu = observation.innovation(z, observation.expected(pose, landmark))
-        h = observation.jacobians(pose, landmark)[0]
-        return nu, h, observation.noise(m.range_std, m.bearing_std)
-
-    def _one_per_landmark(self, pose: np.ndarray, covariance: Callable[[], np.ndarray],
-                          measurements: list[Measurement]) -> list[Measurement]:
-        """The frame's detections of mapped landmarks, in order, keeping of a landmark detected twice only the
-        detection nearest the prediction (Mahalanobis distance at ``pose`` and ``covariance()``, asked for only then).
-        """
-        counts = Counter(m.signature for m in measurements)
-        repeated = [name for name, n in counts.items() if n > 1 and name in self.map]
-        mapped = [m for m in measurements if m.signature in self.map]
-        if not repeated:
-            return mapped
-        sigma = covariance()
-
-        def distance2(m: Measurement) -> float:
-            nu, h, q = self._linearise(pose, m)
-            return float(nu @ np.linalg.solve(h @ sigma @ h.T + q, nu))
-
-        nearest = {name: min((m for m in mapped if m.signature == name), key=distance2) for name in repeated}
-        return [m for m in mapped if nearest.get(m.signature, m) is m]
-
-
-class EkfLocalisation(_Localiser):
-    """Pose-only EKF."""
-
-    def __init__(self, pose: np.ndarray, pose_cov: np.ndarray, landmarks, motion, gate=observation.CHI2_2DOF_99):
-        super().__init__(landmarks, motion, gate)
-        self.mu = np.asarray(pose, dtype=float).copy()
-        self.sigma = np.asarray(pose_cov, dtype=float).copy()
+        self.calibrates = odometry_scale_std is not None
+        size = 5 if self.calibrates else 3
+        self._mean = np.ones(size)
+        self._mean[:3] = pose
+        self._initial_cov = np.zeros((size, size))
+        self._initial_cov[:3, :3] = pose_cov
+        if odometry_scale_std is not None:
+            self._initial_cov[3, 3], self._initial_cov[4, 4] = np.square(odometry_scale_std)
 
     @property
     def pose(self) -> np.ndarray:
-        return self.mu
+        return self._mean[:3]
+
+    @property
+    def odometry_scales(self) -> tuple[float, float]:
+        """Estimated (stride scale, turn scale): true motion per reported motion (1, 1 without self-calibration)."""
+        return (float(self._mean[3]), float(self._mean[4])) if self.calibrates else (1.0, 1.0)
+
+    def _step(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Move the mean with control ``u``; returns the state transition Jacobian F and the process noise."""
+        u = finite_control(u)
+        size = len(self._mean)
+        self._mean[:3], g, g_scales, pose_noise = scaled_step(self.motion, self._mean[:3].copy(), u,
+                                                              *self.odometry_scales)
+        f, noise = np.eye(size), np.zeros((size, size))
+        f[:3, :3], noise[:3, :3] = g, pose_noise
+        if self.calibrates:
+            f[:3, 3:5] = g_scales
+        return f, noise
+
+    def _linearise(self, m: Measurement, landmark: str):
+        """(innovation, H over the whole state, Q) of ``m`` taken as a sighting of the mapped ``landmark``."""
+        z = np.array([m.range_m, m.bearing_rad])
+        nu = observation.innovation(z, observation.expected(self.pose, self.map[landmark]))
+        h = np.zeros((2, len(self._mean)))
+        h[:, :3] = observation.jacobians(self.pose, self.map[landmark])[0]
+        return nu, h, observation.noise(m.range_std, m.bearing_std)
+
+    def _associate(self, covariance: Callable[[], np.ndarray],
+                   measurements: list[Measurement]) -> list[tuple[Measurement, str]]:
+        """The frame's detections paired with the mapped landmark each one sees, in frame order, at most one a
+        landmark (the nearest to the prediction). ``covariance()`` is asked for only when distances are needed."""
+        if self.gate is None:
+            pairs = [(m, m.signature) for m in measurements if m.signature in self.map]
+            if len({landmark for _, landmark in pairs}) == len(pairs):
+                return pairs
+        sigma = covariance()
+
+        def distance2(m: Measurement, landmark: str) -> float:
+            nu, h, q = self._linearise(m, landmark)
+            return float(nu @ np.linalg.solve(h @ sigma @ h.T + q, nu))
+
+        scored = []
+        for m in measurements:
+            if self.gate is None:
+                if m.signature in self.map:
+                    scored.append((m, m.signature, distance2(m, m.signature)))
+                continue
+            hypotheses = [Hypothesis(name, name, distance2(m, name)) for name in self.map]
+            landmark, _ = choose(hypotheses, m.signature, self.gate)
+            scored += [(m, h.landmark, h.distance2) for h in hypotheses if h.landmark == landmark]
+        nearest: dict[str, tuple[Measurement, float]] = {}
+        for m, landmark, d2 in scored:
+            if landmark not in nearest or d2 < nearest[landmark][1]:
+                nearest[landmark] = (m, d2)
+        return [(m, landmark) for m, landmark, _ in scored if nearest[landmark][0] is m]
+
+
+class EkfLocalisation(_Localiser):
+    """EKF over the pose (and, by default, the odometry scales)."""
+
+    def __init__(self, pose: np.ndarray, pose_cov: np.ndarray, landmarks, motion, gate=observation.CHI2_2DOF_99,
+                 odometry_scale_std: tuple[float, float] | None = (STRIDE_SCALE_STD, TURN_SCALE_STD)):
+        super().__init__(pose, pose_cov, landmarks, motion, gate, odometry_scale_std)
+        self.sigma = self._initial_cov
+
+    @property
+    def mu(self) -> np.ndarray:
+        return self._mean
 
     def predict(self, u: np.ndarray) -> None:
-        u = finite_control(u)
-        g, v = self.motion.jacobians(self.mu, u)
-        self.mu = self.motion.move(self.mu, u)
-        self.sigma = g @ self.sigma @ g.T + v @ self.motion.control_noise(u) @ v.T
+        f, noise = self._step(u)
+        self.sigma = f @ self.sigma @ f.T + noise
 
     def update(self, measurements: list[Measurement]) -> int:
         """Correct with each mapped landmark's nearest detection that passes the gate; returns how many did."""
         used = 0
-        for m in self._one_per_landmark(self.mu, lambda: self.sigma, measurements):
-            nu, h, q = self._linearise(self.mu, m)
+        for m, landmark in self._associate(lambda: self.sigma, measurements):
+            nu, h, q = self._linearise(m, landmark)
             s = h @ self.sigma @ h.T + q
             s_inv = np.linalg.inv(s)
             if self.gate is not None and float(nu @ s_inv @ nu) > self.gate:
                 continue
             k = self.sigma @ h.T @ s_inv
-            self.mu = self.mu + k @ nu
-            self.mu[2] = wrap(self.mu[2])
-            self.sigma = (np.eye(3) - k @ h) @ self.sigma
+            self._mean += k @ nu
+            self._mean[2] = wrap(self._mean[2])
+            self.sigma = (np.eye(len(self._mean)) - k @ h) @ self.sigma
             self.sigma = 0.5 * (self.sigma + self.sigma.T)
             used += 1
         return used
 
 
 class EifLocalisation(_Localiser):
-    """Pose-only extended information filter."""
+    """Extended information filter over the pose (and, by default, the odometry scales)."""
 
-    def __init__(self, pose: np.ndarray, pose_cov: np.ndarray, landmarks, motion, gate=observation.CHI2_2DOF_99):
-        super().__init__(landmarks, motion, gate)
-        self.omega = np.linalg.inv(np.asarray(pose_cov, dtype=float))
-        self.xi = self.omega @ np.asarray(pose, dtype=float)
-        self._mu = np.asarray(pose, dtype=float).copy()
-
-    @property
-    def pose(self) -> np.ndarray:
-        return self._mu
+    def __init__(self, pose: np.ndarray, pose_cov: np.ndarray, landmarks, motion, gate=observation.CHI2_2DOF_99,
+                 odometry_scale_std: tuple[float, float] | None = (STRIDE_SCALE_STD, TURN_SCALE_STD)):
+        super().__init__(pose, pose_cov, landmarks, motion, gate, odometry_scale_std)
+        self.omega = np.linalg.inv(self._initial_cov)
+        self.xi = self.omega @ self._mean
 
     def predict(self, u: np.ndarray) -> None:
-        u = finite_control(u)
-        mu = self._mu
-        g, v = self.motion.jacobians(mu, u)
-        self._mu = self.motion.move(mu, u)
-        self.omega = np.linalg.inv(g @ np.linalg.inv(self.omega) @ g.T + v @ self.motion.control_noise(u) @ v.T)
-        self.xi = self.omega @ self._mu
+        f, noise = self._step(u)
+        self.omega = np.linalg.inv(f @ np.linalg.inv(self.omega) @ f.T + noise)
+        self.xi = self.omega @ self._mean
 
     def update(self, measurements: list[Measurement]) -> int:
         """Add the information of each mapped landmark's nearest gated detection at once (linearised at the
-        predicted pose)."""
-        mu = self._mu
+        predicted state)."""
+        mu = self._mean.copy()
         used = 0
-        for m in self._one_per_landmark(mu, lambda: np.linalg.inv(self.omega), measurements):
-            nu, h, q = self._linearise(mu, m)
+        for m, landmark in self._associate(lambda: np.linalg.inv(self.omega), measurements):
+            nu, h, q = self._linearise(m, landmark)
             if self.gate is not None:
                 s = h @ np.linalg.inv(self.omega) @ h.T + q
                 if float(nu @ np.linalg.solve(s, nu)) > self.gate:
@@ -126,7 +165,7 @@ class EifLocalisation(_Localiser):
             self.xi = self.xi + h.T @ q_inv @ (nu + h @ mu)
             used += 1
         if used:
-            self._mu = np.linalg.solve(self.omega, self.xi)
-            self._mu[2] = wrap(self._mu[2])
-            self.xi = self.omega @ self._mu
+            self._mean = np.linalg.solve(self.omega, self.xi)
+            self._mean[2] = wrap(self._mean[2])
+            self.xi = self.omega @ self._mean
         return used

@@ -27,6 +27,26 @@ def finite_control(u: np.ndarray) -> np.ndarray:
     return control
 
 
+#: Prior standard deviations of the odometry scales (true motion per reported motion, mean 1) that SLAM and
+#: localisation estimate: a Nao's walk engine misreports its stride by tens of percent, its turns by less.
+STRIDE_SCALE_STD = 0.3
+TURN_SCALE_STD = 0.1
+
+
+def scaled_step(motion: OdometryModel | VelocityModel, pose: np.ndarray, u: np.ndarray, stride: float, turn: float
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One prediction of a pose under reported control ``u`` with odometry scales ``stride`` and ``turn``.
+
+    Returns the new pose, G = d pose' / d pose (3x3), d pose' / d (stride, turn) (3x2) and the pose noise V M V^T of
+    the true (scaled) control: what a filter with the scales in its state needs to propagate its robot block.
+    """
+    true_u = motion.scaled(u, stride, turn)
+    g, v = motion.jacobians(pose, true_u)
+    d_stride, d_turn = motion.scale_directions(u)
+    return (motion.move(pose, true_u), g, np.column_stack([v @ d_stride, v @ d_turn]),
+            v @ motion.control_noise(true_u) @ v.T)
+
+
 @dataclass(frozen=True)
 class OdometryModel:
     """Odometry as rot1, trans, rot2 between two odometry poses; alphas scale the control noise."""

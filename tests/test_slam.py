@@ -194,6 +194,45 @@ def test_localisation_on_a_known_map_tracks_the_circle(filter_class):
     assert np.mean(errors) < 0.3 < np.mean(odometry_errors)
 
 
+@pytest.mark.parametrize("filter_class", [EkfLocalisation, EifLocalisation])
+def test_localisation_learns_a_misreported_stride(filter_class):
+    """The sim's walk engine reports 1.25 times its stride and turns 4 % too far. The scales in the state settle on
+    the true 0.8 and 1/1.04; the thesis's pose-only filter trusts the odometry and ends several times farther off."""
+    walk = simulate(SimConfig(path="circle", seed=4, false_positive_rate=0.2))
+    start = walk.steps[0].true_pose
+    calibrated = filter_class(start, np.eye(3) * 1e-3, walk.landmarks, OdometryModel())
+    pose_only = filter_class(start, np.eye(3) * 1e-3, walk.landmarks, OdometryModel(), odometry_scale_std=None)
+    errors = {calibrated: [], pose_only: []}
+    for previous, step in zip(walk.steps, walk.steps[1:]):
+        for localiser, error in errors.items():
+            localiser.predict(OdometryModel.control(previous.odometry_pose, step.odometry_pose))
+            if step.measurements:
+                localiser.update(step.measurements)
+            error.append(np.linalg.norm(localiser.pose[:2] - step.true_pose[:2]))
+    assert np.allclose(calibrated.odometry_scales, (1 / 1.25, 1 / 1.04), atol=0.03)
+    assert pose_only.odometry_scales == (1.0, 1.0)
+    assert np.mean(errors[calibrated]) < 0.1 and np.mean(errors[pose_only]) > 3 * np.mean(errors[calibrated])
+
+
+@pytest.mark.parametrize("filter_class", [EkfLocalisation, EifLocalisation])
+def test_a_swapped_class_corrects_the_pose_only_where_one_landmark_explains_it(filter_class):
+    """The detector names a green-band pole blue: with the gate, the one landmark that explains the sighting takes it
+    (as in SLAM); with two landmarks of other classes inside the gate nothing is used; without a gate the class is
+    the landmark, as in the thesis."""
+    truth = np.array([0.1, 0.0, 0.0])
+    landmarks = {"gp": (3.0, 1.0), "bp": (-3.0, 1.0), "yp": (3.0, 1.3)}
+    seen_gp_as_bp = Measurement(*observation.expected(truth, np.array([3.0, 1.0])), "bp", 0.9, 0.05, 0.02)
+
+    def localiser(names, **kwargs):
+        return filter_class(np.zeros(3), np.eye(3) * 0.01, {n: landmarks[n] for n in names}, OdometryModel(), **kwargs)
+
+    alone = localiser(("gp", "bp"))
+    assert alone.update([seen_gp_as_bp]) == 1 and abs(alone.pose[0] - truth[0]) < 0.05
+    assert localiser(("gp", "bp", "yp")).update([seen_gp_as_bp]) == 0
+    thesis = localiser(("gp", "bp"), gate=None)
+    assert thesis.update([seen_gp_as_bp]) == 1 and abs(thesis.pose[0] - truth[0]) > 0.05
+
+
 def test_ekf_and_eif_agree_on_one_linear_step():
     landmarks = {"bp": (3.0, 1.0)}
     ekf = EkfLocalisation(np.zeros(3), np.eye(3) * 0.01, landmarks, OdometryModel(), gate=None)
