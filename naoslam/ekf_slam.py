@@ -27,6 +27,7 @@ import numpy as np
 from naoslam import observation
 from naoslam.association import CandidatePool, Hypothesis, choose
 from naoslam.measurement import Measurement
+from naoslam.metrics import pose_nees
 from naoslam.motion import (STRIDE_SCALE_STD, TURN_SCALE_STD, OdometryModel, VelocityModel, finite_control,
                              scaled_step, wrap)
 
@@ -292,9 +293,7 @@ class EkfSlam:
 
     def pose_nees(self, true_pose: np.ndarray) -> float:
         """Normalised estimation error squared of the pose (3 degrees of freedom)."""
-        error = self.pose - true_pose
-        error[2] = wrap(error[2])
-        return float(error @ np.linalg.solve(self.sigma[:3, :3], error))
+        return pose_nees(self.pose, self.sigma[:3, :3], true_pose)
 
 
 def _observable_part(h: np.ndarray, pose: np.ndarray, landmark: np.ndarray) -> np.ndarray:

@@ -15,6 +15,7 @@ Beyond the thesis, and as in SLAM (``naoslam.ekf_slam``), by default:
 """
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 
 import numpy as np
@@ -22,11 +23,12 @@ import numpy as np
 from naoslam import observation
 from naoslam.association import Hypothesis, choose
 from naoslam.measurement import Measurement
+from naoslam.metrics import pose_nees
 from naoslam.motion import (STRIDE_SCALE_STD, TURN_SCALE_STD, OdometryModel, VelocityModel, finite_control,
                             scaled_step, wrap)
 
 
-class _Localiser:
+class _Localiser(ABC):
     def __init__(self, pose: np.ndarray, pose_cov: np.ndarray, landmarks: dict[str, tuple[float, float]],
                  motion: OdometryModel | VelocityModel, gate: float | None,
                  odometry_scale_std: tuple[float, float] | None):
@@ -45,6 +47,14 @@ class _Localiser:
     @property
     def pose(self) -> np.ndarray:
         return self._mean[:3]
+
+    def pose_nees(self, true_pose: np.ndarray) -> float:
+        """Normalised estimation error squared of the pose (3 degrees of freedom)."""
+        return pose_nees(self.pose, self.covariance()[:3, :3], true_pose)
+
+    @abstractmethod
+    def covariance(self) -> np.ndarray:
+        """The state's covariance."""
 
     @property
     def odometry_scales(self) -> tuple[float, float]:
@@ -113,6 +123,9 @@ class EkfLocalisation(_Localiser):
     def mu(self) -> np.ndarray:
         return self._mean
 
+    def covariance(self) -> np.ndarray:
+        return self.sigma
+
     def predict(self, u: np.ndarray) -> None:
         f, noise = self._step(u)
         self.sigma = f @ self.sigma @ f.T + noise
@@ -120,7 +133,7 @@ class EkfLocalisation(_Localiser):
     def update(self, measurements: list[Measurement]) -> int:
         """Correct with each mapped landmark's nearest detection that passes the gate; returns how many did."""
         used = 0
-        for m, landmark in self._associate(lambda: self.sigma, measurements):
+        for m, landmark in self._associate(self.covariance, measurements):
             nu, h, q = self._linearise(m, landmark)
             s = h @ self.sigma @ h.T + q
             s_inv = np.linalg.inv(s)
@@ -144,6 +157,9 @@ class EifLocalisation(_Localiser):
         self.omega = np.linalg.inv(self._initial_cov)
         self.xi = self.omega @ self._mean
 
+    def covariance(self) -> np.ndarray:
+        return np.linalg.inv(self.omega)
+
     def predict(self, u: np.ndarray) -> None:
         f, noise = self._step(u)
         self.omega = np.linalg.inv(f @ np.linalg.inv(self.omega) @ f.T + noise)
@@ -154,10 +170,10 @@ class EifLocalisation(_Localiser):
         predicted state)."""
         mu = self._mean.copy()
         used = 0
-        for m, landmark in self._associate(lambda: np.linalg.inv(self.omega), measurements):
+        for m, landmark in self._associate(self.covariance, measurements):
             nu, h, q = self._linearise(m, landmark)
             if self.gate is not None:
-                s = h @ np.linalg.inv(self.omega) @ h.T + q
+                s = h @ self.covariance() @ h.T + q
                 if float(nu @ np.linalg.solve(s, nu)) > self.gate:
                     continue
             q_inv = np.linalg.inv(q)

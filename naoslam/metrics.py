@@ -1,15 +1,24 @@
-"""Error statistics and the rigid SE(2) alignment used to score a map without robot truth."""
+"""Error statistics, pose consistency (NEES) and the rigid SE(2) alignment used to score a map without robot truth."""
 from __future__ import annotations
 
 import math
 
 import numpy as np
 
+from naoslam.motion import wrap
+
 
 def error_stats(errors: np.ndarray) -> dict[str, float]:
     """Mean, standard deviation and RMSE (same unit as ``errors``)."""
     e = np.asarray(errors, dtype=float)
     return {"mean": float(e.mean()), "std": float(e.std()), "rmse": float(np.sqrt(np.mean(e ** 2)))}
+
+
+def pose_nees(pose: np.ndarray, pose_cov: np.ndarray, true_pose: np.ndarray) -> float:
+    """Normalised estimation error squared of a pose (x, y, theta) with covariance ``pose_cov`` (3 degrees of freedom)."""
+    error = np.asarray(pose, dtype=float) - true_pose
+    error[2] = wrap(error[2])
+    return float(error @ np.linalg.solve(pose_cov, error))
 
 
 def align_se2(points: np.ndarray, reference: np.ndarray) -> np.ndarray:

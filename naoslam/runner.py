@@ -1,4 +1,5 @@
-"""Drive a SLAM back end through a time-ordered sequence of odometry and frames, and score the result."""
+"""Drive a SLAM back end (or a localiser on a known map) through a time-ordered sequence of odometry and frames,
+and score the result."""
 from __future__ import annotations
 
 import time
@@ -7,9 +8,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from naoslam.ekf_slam import EkfSlam, SlamConfig
+from naoslam.localisation import EifLocalisation, EkfLocalisation
 from naoslam.measurement import Measurement
 from naoslam.metrics import align_se2, chi2_band, error_stats
-from naoslam.motion import OdometryModel, VelocityModel
+from naoslam.motion import STRIDE_SCALE_STD, TURN_SCALE_STD, OdometryModel, VelocityModel
 from naoslam.sim import Walk
 
 
@@ -125,11 +127,43 @@ def score_map(landmarks: dict[str, np.ndarray], truth: dict[str, tuple[float, fl
     return out
 
 
-def run_slam(sequence: Sequence, config: SlamConfig = SlamConfig(),
+@dataclass(frozen=True)
+class LocalisationConfig:
+    """Localisation on the sequence's true map as a back end beside SLAM: the EKF or the EIF (``information_form``),
+    with the odometry scales in the state or without them (the 2018 thesis's pose-only filter)."""
+
+    information_form: bool = False
+    self_calibrate: bool = True
+
+    @property
+    def label(self) -> str:
+        form = "EIF" if self.information_form else "EKF"
+        return f"{form} localisation on the known map" + ("" if self.self_calibrate else ", no odometry scales")
+
+    def build(self, sequence: Sequence, pose_cov: np.ndarray) -> EkfLocalisation | EifLocalisation:
+        """The localiser at the sequence's start on its true map."""
+        localiser = EifLocalisation if self.information_form else EkfLocalisation
+        scales = (STRIDE_SCALE_STD, TURN_SCALE_STD) if self.self_calibrate else None
+        return localiser(sequence.start, pose_cov, sequence.landmarks_truth, sequence.motion,
+                         odometry_scale_std=scales)
+
+
+def localisable(sequence: Sequence) -> bool:
+    """Whether localisation can run on the sequence: its true map is known and its start is a true pose in that map
+    (a simulated walk; not a UTIAS log without robot truth, nor a recording)."""
+    first = sequence.events[0].true_pose if sequence.events else None
+    return bool(sequence.landmarks_truth) and first is not None and np.allclose(first, sequence.start)
+
+
+def run_slam(sequence: Sequence, config: SlamConfig | LocalisationConfig = SlamConfig(),
              pose_std: tuple[float, float, float] = (0.01, 0.01, 0.01)) -> SlamResult:
     """Run one back end over the sequence, recording the pose after every event and the time each step took.
-    Every frame is folded in, one without detections too, as a robot's loop does (it ages the pending candidates)."""
-    slam = EkfSlam(sequence.start, np.diag(np.square(pose_std)), sequence.motion, config)
+    Every frame is folded in, one without detections too, as a robot's loop does (it ages the pending candidates).
+    A localiser (``LocalisationConfig``) counts its used detections as accepted and maps nothing of its own."""
+    pose_cov = np.diag(np.square(pose_std))
+    localising = isinstance(config, LocalisationConfig)
+    slam = config.build(sequence, pose_cov) if localising else EkfSlam(sequence.start, pose_cov, sequence.motion,
+                                                                        config)
     times, poses, truth, odometry, nees, nis = [], [], [], [], [], []
     predict_ns, update_ns = [], []
     counts = {"accepted": 0, "confused": 0, "initialised": 0, "pending": 0, "rejected": 0}
@@ -142,9 +176,12 @@ def run_slam(sequence: Sequence, config: SlamConfig = SlamConfig(),
             start = time.perf_counter_ns()
             log = slam.update(event.measurements)
             update_ns.append(time.perf_counter_ns() - start)
-            for key in counts:
-                counts[key] += len(getattr(log, key))
-            nis += log.nis
+            if localising:
+                counts["accepted"] += log
+            else:
+                for key in counts:
+                    counts[key] += len(getattr(log, key))
+                nis += log.nis
         times.append(event.t)
         poses.append(slam.pose.copy())
         if event.true_pose is not None:
@@ -156,6 +193,6 @@ def run_slam(sequence: Sequence, config: SlamConfig = SlamConfig(),
     timing = {"predict": float(np.mean(predict_ns)) / 1e3 if predict_ns else 0.0,
               "update": float(np.mean(update_ns)) / 1e3 if update_ns else 0.0}
     return SlamResult(config.label, np.array(times), np.array(poses), np.array(truth) if has_truth else None,
-                      np.array(odometry) if len(odometry) == len(poses) else None, slam.landmarks,
-                      sequence.landmarks_truth, np.array(nees) if has_truth else None, counts, np.array(nis),
-                      timing, slam.odometry_scales)
+                      np.array(odometry) if len(odometry) == len(poses) else None,
+                      {} if localising else slam.landmarks, {} if localising else sequence.landmarks_truth,
+                      np.array(nees) if has_truth else None, counts, np.array(nis), timing, slam.odometry_scales)

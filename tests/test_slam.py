@@ -233,6 +233,20 @@ def test_a_swapped_class_corrects_the_pose_only_where_one_landmark_explains_it(f
     assert thesis.update([seen_gp_as_bp]) == 1 and abs(thesis.pose[0] - truth[0]) > 0.05
 
 
+def test_localisation_rows_run_only_where_the_start_is_a_true_pose_on_a_known_map():
+    """A simulated walk starts at its true pose on its true map; a log whose start is its own origin (UTIAS without
+    robot truth) or a recording without a map cannot be localised, and the comparison leaves those rows out."""
+    from detector.slam_run import BACKENDS, compare_backends
+    from naoslam.runner import LocalisationConfig, localisable
+
+    walk = walk_sequence(simulate(SimConfig(duration_s=10, seed=1)))
+    unmapped = replace(walk, landmarks_truth={})
+    elsewhere = replace(walk, start=walk.start + np.array([1.0, 0.0, 0.0]))
+    assert localisable(walk) and not localisable(unmapped) and not localisable(elsewhere)
+    rows = compare_backends(lambda seed: elsewhere, [0], BACKENDS)
+    assert [row["backend"] for row in rows] == [n for n, c in BACKENDS.items() if not isinstance(c, LocalisationConfig)]
+
+
 def test_ekf_and_eif_agree_on_one_linear_step():
     landmarks = {"bp": (3.0, 1.0)}
     ekf = EkfLocalisation(np.zeros(3), np.eye(3) * 0.01, landmarks, OdometryModel(), gate=None)
