@@ -36,13 +36,12 @@ class _Localiser(ABC):
         self.motion = motion
         self.gate = gate
         self.calibrates = odometry_scale_std is not None
-        size = 5 if self.calibrates else 3
-        self._mean = np.ones(size)
+        self._mean = np.ones(5 if self.calibrates else 3)
         self._mean[:3] = pose
-        self._initial_cov = np.zeros((size, size))
-        self._initial_cov[:3, :3] = pose_cov
+        self._prior_cov = np.zeros((len(self._mean),) * 2)
+        self._prior_cov[:3, :3] = pose_cov
         if odometry_scale_std is not None:
-            self._initial_cov[3, 3], self._initial_cov[4, 4] = np.square(odometry_scale_std)
+            self._prior_cov[3, 3], self._prior_cov[4, 4] = np.square(odometry_scale_std)
 
     @property
     def pose(self) -> np.ndarray:
@@ -117,7 +116,7 @@ class EkfLocalisation(_Localiser):
     def __init__(self, pose: np.ndarray, pose_cov: np.ndarray, landmarks, motion, gate=observation.CHI2_2DOF_99,
                  odometry_scale_std: tuple[float, float] | None = (STRIDE_SCALE_STD, TURN_SCALE_STD)):
         super().__init__(pose, pose_cov, landmarks, motion, gate, odometry_scale_std)
-        self.sigma = self._initial_cov
+        self.sigma = self._prior_cov.copy()
 
     @property
     def mu(self) -> np.ndarray:
@@ -154,7 +153,7 @@ class EifLocalisation(_Localiser):
     def __init__(self, pose: np.ndarray, pose_cov: np.ndarray, landmarks, motion, gate=observation.CHI2_2DOF_99,
                  odometry_scale_std: tuple[float, float] | None = (STRIDE_SCALE_STD, TURN_SCALE_STD)):
         super().__init__(pose, pose_cov, landmarks, motion, gate, odometry_scale_std)
-        self.omega = np.linalg.inv(self._initial_cov)
+        self.omega = np.linalg.inv(self._prior_cov)
         self.xi = self.omega @ self._mean
 
     def covariance(self) -> np.ndarray:
