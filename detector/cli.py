@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -51,6 +52,24 @@ def _whole_number(minimum: int) -> Callable[[str], int]:
         if value < minimum:
             raise argparse.ArgumentTypeError(f"{value}: give {minimum} or more")
         return value
+
+    return parse
+
+
+def _numbers(names: str, positive: bool = False) -> Callable[[str], tuple[float, ...]]:
+    """An argparse type for comma-separated finite numbers (above 0 if ``positive``), one per name in ``names``
+    (e.g. ``"X,Y,THETA"``)."""
+    count = len(names.split(","))
+
+    def parse(text: str) -> tuple[float, ...]:
+        try:
+            values = tuple(float(v) for v in text.split(","))
+        except ValueError:
+            values = ()
+        if len(values) != count or not all(math.isfinite(v) and (v > 0 or not positive) for v in values):
+            kind = "positive numbers" if positive else "numbers"
+            raise argparse.ArgumentTypeError(f"{text!r}: give {names} as {count} {kind} separated by commas")
+        return values
 
     return parse
 
@@ -313,6 +332,17 @@ def build_parser() -> argparse.ArgumentParser:
                            "(default all; e.g. 2.5 or 1.25): what a slower CPU affords, on the same walk")
     slam.add_argument("--odometry-bias", type=float, default=1.25,
                       help="sim: reported stride per true stride (default 1.25: the Nao over-reports)")
+    slam.add_argument("--map", metavar="CSV",
+                      help="localise on a known map instead of building one: a CSV class,x,y (metres, the field's "
+                           "frame) of where the poles stand, or `true` for a simulated walk's own; EKF localisation "
+                           "with the odometry scales (--eif, --gate, --no-gate and --no-self-calibration apply; the "
+                           "other SLAM options do not)")
+    slam.add_argument("--eif", action="store_true", help="with --map: the information filter instead of the EKF")
+    slam.add_argument("--start", type=_numbers("X,Y,THETA"), metavar="X,Y,THETA",
+                      help="the filter's start pose (m, m, rad) in the map's frame (default: a simulated walk's true "
+                           "start, a recording's first odometry pose, a UTIAS log's first true pose)")
+    slam.add_argument("--start-std", type=_numbers("METRES,RADIANS", positive=True), metavar="METRES,RADIANS", default=(0.01, 0.01),
+                      help="how well the start is known (default 0.01,0.01; e.g. 0.2,0.2 for a robot placed by hand)")
     slam.add_argument("--seed", type=_whole_number(0), default=0)
     slam.add_argument("--compare", type=_whole_number(1), metavar="SEEDS",
                       help="also run every back end (and, on a simulated walk, the GTSAM smoother reference) on "
@@ -351,11 +381,15 @@ def _slam(args: argparse.Namespace) -> int:
     from calibration.run import load_calibration
     from detector.datasets.io import output_folder
     from detector.slam_reference import smooth
-    from detector.slam_run import (BACKENDS, FrontEnd, compare_backends, print_comparison, recorded_sequence,
-                                   sim_sequence, utias_sequence, write_outputs)
+    from dataclasses import replace
+
+    import numpy as np
+
+    from detector.slam_run import (BACKENDS, FrontEnd, compare_backends, print_comparison, read_pole_map,
+                                   recorded_sequence, sim_sequence, utias_sequence, write_outputs)
     from naoslam.atomic import write_json
     from naoslam.ekf_slam import SlamConfig
-    from naoslam.runner import run_slam
+    from naoslam.runner import LocalisationConfig, run_slam
 
     calibration = load_calibration(args.calibration) if args.calibration else None
     frontend = args.frontend or ("shipped" if args.frames else None)
@@ -379,15 +413,29 @@ def _slam(args: argparse.Namespace) -> int:
         def make(seed: int):
             return recorded_sequence(args.frames, args.odometry, front_end, args.time_offset,
                                      camera_pose=not args.no_camera_pose)
-    association = args.association or ("class" if args.utias else "nearest")
-    config = SlamConfig(linearisation={"ekf": "standard"}.get(args.backend, args.backend),
-                        outlier_filter=args.outlier_filter, gate=None if args.no_gate else args.gate,
-                        min_views=args.min_views, min_separation_m=args.min_separation, association=association,
-                        self_calibrate=not args.no_self_calibration)
-    inputs = (args.utias, args.frames, args.odometry, args.calibration, Path(frontend) if frontend else None)
+    gate = None if args.no_gate else args.gate
+    if args.map:
+        if args.map == "true" and not args.sim:
+            raise ValueError("--map true is a simulated walk's own map: give --sim, or a CSV class,x,y of where your "
+                             "poles stand")
+        config = LocalisationConfig(information_form=args.eif, self_calibrate=not args.no_self_calibration,
+                                    gate=gate, landmarks=None if args.map == "true" else read_pole_map(args.map))
+    elif args.eif:
+        raise ValueError("--eif is a localiser: give --map with where the poles stand")
+    else:
+        association = args.association or ("class" if args.utias else "nearest")
+        config = SlamConfig(linearisation={"ekf": "standard"}.get(args.backend, args.backend),
+                            outlier_filter=args.outlier_filter, gate=gate, min_views=args.min_views,
+                            min_separation_m=args.min_separation, association=association,
+                            self_calibrate=not args.no_self_calibration)
+    map_file = Path(args.map) if args.map and args.map != "true" else None
+    inputs = (args.utias, args.frames, args.odometry, args.calibration, Path(frontend) if frontend else None, map_file)
+    start_std = (args.start_std[0], args.start_std[0], args.start_std[1])
     with output_folder(args.out, args.force, _existing(*inputs)) as out:
         sequence = make(args.seed)
-        metrics = write_outputs(run_slam(sequence, config), sequence, out)
+        if args.start is not None:
+            sequence = replace(sequence, start=np.array(args.start))
+        metrics = write_outputs(run_slam(sequence, config, start_std), sequence, out)
         rows = None
         if args.compare:
             seeds = list(range(args.seed, args.seed + (args.compare if args.sim else 1)))

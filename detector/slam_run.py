@@ -14,10 +14,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from detector.datasets.names import canonical_class
 from detector.datasets.io import csv_rows, require_decodable
 from naoslam.atomic import atomic_path, write_json
 from naoslam.camera import CameraPose
 from naoslam.ekf_slam import SlamConfig
+from naoslam.landmarks import CLASSES
 from naoslam.logs import load_utias
 from naoslam.measurement import THESIS_CONF, Measurement, MeasurementModel, RangeCalibration
 from naoslam.metrics import chi2_band
@@ -202,12 +204,44 @@ def _odometry_rows(odometry_csv: Path) -> tuple[list[list[float]], list[CameraPo
     return rows, poses or None
 
 
+def read_pole_map(path: Path) -> dict[str, tuple[float, float]]:
+    """Where the poles stand: a CSV ``class,x,y`` (metres, the field's frame), one row per pole.
+
+    Refused with the file and line: a class that names no landmark, a class given twice (the localiser tells poles
+    apart by class), coordinates that are not finite numbers, or no rows.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"{path}: no such map file - give a CSV with the header class,x,y (metres) and one row per "
+                         "pole")
+    poles: dict[str, tuple[float, float]] = {}
+    for line, row in csv_rows(path, ("class", "x", "y")):
+        cls = canonical_class(row["class"])
+        if cls is None:
+            raise ValueError(f"{path}:{line}: class {row['class']!r} names no landmark - use one of "
+                             f"{' '.join(CLASSES)}")
+        if cls in poles:
+            raise ValueError(f"{path}:{line}: a second {cls!r} pole - the localiser tells poles apart by class, so a "
+                             "map holds each class once")
+        try:
+            x, y = float(row["x"]), float(row["y"])
+            if not (math.isfinite(x) and math.isfinite(y)):
+                raise ValueError
+        except ValueError:
+            raise ValueError(f"{path}:{line}: x and y must be finite numbers in metres "
+                             f"(got {row['x']!r}, {row['y']!r})") from None
+        poles[cls] = (x, y)
+    if not poles:
+        raise ValueError(f"{path}: no poles - give one row class,x,y per pole")
+    return poles
+
+
 def utias_sequence(folder: Path, duration_s: float | None = None) -> Sequence:
     return load_utias(folder, duration_s=duration_s)
 
 
 def write_outputs(result: SlamResult, sequence: Sequence, out: Path) -> dict:
-    """metrics.json, path.csv, map.json and the two plots in ``out``."""
+    """metrics.json, path.csv, map.json (the map estimated, or a localiser's given map) and the two plots in ``out``."""
     out.mkdir(parents=True, exist_ok=True)
     metrics = {"sequence": sequence.name, **result.metrics()}
     write_json(out / "metrics.json", metrics)
@@ -305,7 +339,8 @@ def plot_map(result: SlamResult, png: Path, title: str) -> Path:
                    label="true landmarks")
     if result.landmarks:
         estimated = np.array(list(result.landmarks.values()))
-        ax.scatter(*estimated.T, marker="x", s=50, color="tab:red", label="estimated landmarks")
+        ax.scatter(*estimated.T, marker="x", s=50, color="tab:red",
+                   label="estimated landmarks" if result.mapped else "the map it localised on")
         for name, (x, y) in result.landmarks.items():
             ax.annotate(name, (x, y), textcoords="offset points", xytext=(4, 4), fontsize=7)
     ax.set_aspect("equal")

@@ -12,6 +12,7 @@ from naoslam.localisation import EifLocalisation, EkfLocalisation
 from naoslam.measurement import Measurement
 from naoslam.metrics import align_se2, chi2_band, error_stats
 from naoslam.motion import STRIDE_SCALE_STD, TURN_SCALE_STD, OdometryModel, VelocityModel
+from naoslam.observation import CHI2_2DOF_99
 from naoslam.sim import Walk
 
 
@@ -73,6 +74,8 @@ class SlamResult:
     nis: np.ndarray = field(default_factory=lambda: np.zeros(0))
     time_per_step_us: dict[str, float] = field(default_factory=dict)
     odometry_scales: tuple[float, float] = (1.0, 1.0)
+    #: False for a localiser: ``landmarks`` is the map it was given, not one it estimated, and is not scored.
+    mapped: bool = True
 
     def metrics(self) -> dict:
         """Robot, odometry and landmark errors (mean, std, rmse in m), missing and phantom landmarks, NEES and NIS
@@ -84,7 +87,7 @@ class SlamResult:
             if self.odometry_poses is not None:
                 out["odometry_error"] = error_stats(np.linalg.norm(self.odometry_poses[:, :2]
                                                                    - self.true_poses[:, :2], axis=1))
-        if self.landmarks_truth:
+        if self.landmarks_truth and self.mapped:
             out.update(score_map(self.landmarks, self.landmarks_truth, align=self.true_poses is None))
         if self.nees is not None and len(self.nees):
             band = chi2_band(3)
@@ -129,23 +132,27 @@ def score_map(landmarks: dict[str, np.ndarray], truth: dict[str, tuple[float, fl
 
 @dataclass(frozen=True)
 class LocalisationConfig:
-    """Localisation on the sequence's true map as a back end beside SLAM: the EKF or the EIF (``information_form``),
-    with the odometry scales in the state or without them (the 2018 thesis's pose-only filter)."""
+    """Localisation on a known map as a back end beside SLAM: the EKF or the EIF (``information_form``), with the
+    odometry scales in the state or without them (the 2018 thesis's pose-only filter), with a validation gate or
+    none. ``landmarks`` is the map (class -> (x, y)); None takes the sequence's true map."""
 
     information_form: bool = False
     self_calibrate: bool = True
+    gate: float | None = CHI2_2DOF_99
+    landmarks: dict[str, tuple[float, float]] | None = None
 
     @property
     def label(self) -> str:
         form = "EIF" if self.information_form else "EKF"
-        return f"{form} localisation on the known map" + ("" if self.self_calibrate else ", no odometry scales")
+        source = "the known map" if self.landmarks is None else "a given map"
+        return f"{form} localisation on {source}" + ("" if self.self_calibrate else ", no odometry scales")
 
     def build(self, sequence: Sequence, pose_cov: np.ndarray) -> EkfLocalisation | EifLocalisation:
-        """The localiser at the sequence's start on its true map."""
+        """The localiser at the sequence's start on its map."""
         localiser = EifLocalisation if self.information_form else EkfLocalisation
         scales = (STRIDE_SCALE_STD, TURN_SCALE_STD) if self.self_calibrate else None
-        return localiser(sequence.start, pose_cov, sequence.landmarks_truth, sequence.motion,
-                         odometry_scale_std=scales)
+        landmarks = sequence.landmarks_truth if self.landmarks is None else self.landmarks
+        return localiser(sequence.start, pose_cov, landmarks, sequence.motion, self.gate, odometry_scale_std=scales)
 
 
 def localisable(sequence: Sequence) -> bool:
@@ -194,5 +201,6 @@ def run_slam(sequence: Sequence, config: SlamConfig | LocalisationConfig = SlamC
               "update": float(np.mean(update_ns)) / 1e3 if update_ns else 0.0}
     return SlamResult(config.label, np.array(times), np.array(poses), np.array(truth) if has_truth else None,
                       np.array(odometry) if len(odometry) == len(poses) else None,
-                      {} if localising else slam.landmarks, {} if localising else sequence.landmarks_truth,
-                      np.array(nees) if has_truth else None, counts, np.array(nis), timing, slam.odometry_scales)
+                      slam.map if localising else slam.landmarks, sequence.landmarks_truth,
+                      np.array(nees) if has_truth else None, counts, np.array(nis), timing, slam.odometry_scales,
+                      mapped=not localising)

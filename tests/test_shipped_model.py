@@ -146,6 +146,36 @@ def test_localisation_through_the_shipped_detector_follows_the_robot(robot_walk,
     assert filter_.odometry_scales[0] == pytest.approx(1 / 1.25, abs=0.05)
 
 
+def test_poles_slam_localises_a_recording_on_a_map_of_the_field(robot_walk, tmp_path):
+    """The same walk saved as a robot records it (frames named by time, odometry CSV with the camera's pose) and the
+    poles' places as a CSV: `poles slam --frames --odometry --map --start` follows the robot as the loop above does."""
+    from detector.synth.walk import frame_steps
+
+    walk, frames = robot_walk
+    times = [walk.steps[i].t for i in frame_steps(walk)]
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    rows = ["t,x,y,theta,camera_height,camera_pitch,camera_roll"]
+    for t, (odometry, frame, camera) in zip(times, frames, strict=True):
+        cv2.imwrite(str(folder / f"{t:.3f}.jpg"), frame, [cv2.IMWRITE_JPEG_QUALITY, 95])
+        rows.append(",".join(f"{v:.6f}" for v in (t, *odometry, *camera)))
+    (tmp_path / "odometry.csv").write_text("\n".join(rows) + "\n")
+    (tmp_path / "poles.csv").write_text("class,x,y\n" + "".join(f"{c},{x},{y}\n" for c, (x, y) in
+                                                                 walk.landmarks.items()))
+    start = ",".join(f"{v:.4f}" for v in walk.steps[0].true_pose)
+    out = tmp_path / "loc"
+    assert main(["slam", "--frames", str(folder), "--odometry", str(tmp_path / "odometry.csv"), "--time-offset", "0",
+                 "--map", str(tmp_path / "poles.csv"), f"--start={start}", "--start-std", "0.05,0.05",
+                 "--out", str(out)]) == 0
+    path = np.loadtxt(out / "path.csv", delimiter=",", skiprows=1)
+    truth = {round(step.t, 3): step.true_pose for step in walk.steps}
+    odometry = {round(step.t, 3): step.odometry_pose for step in walk.steps}
+    errors = [np.hypot(*(row[1:3] - truth[round(row[0], 3)][:2])) for row in path]
+    drift = [np.hypot(*(odometry[round(row[0], 3)][:2] - truth[round(row[0], 3)][:2])) for row in path]
+    assert np.mean(errors) < 0.13 and np.mean(errors) < 0.35 * np.mean(drift)
+    assert json.loads((out / "metrics.json").read_text())["odometry_scales"]["stride"] == pytest.approx(0.8, abs=0.05)
+
+
 def test_shipped_onnx_carries_calibration_and_its_threshold():
     from naoslam.detector import LandmarkDetector
 

@@ -123,3 +123,80 @@ def test_a_recording_hands_each_frame_the_camera_pose_of_the_nearest_odometry_ro
     seen.clear()
     recorded_sequence(frames, odometry, FrontEnd("shipped"), time_offset_s=0.3, camera_pose=False)
     assert seen == [None, None, None]
+
+
+FIELD_MAP = "class,x,y\nbp,-4.675,3.175\ngp,0,3.175\nyp,4.675,3.175\npb,-4.675,-3.175\npg,0,-3.175\npy,4.675,-3.175\n"
+
+
+def test_slam_with_a_map_localises_on_it_instead_of_building_one(tmp_path):
+    """--map true: the walk's own map; a CSV of the same poles gives the same path; the map is not re-estimated."""
+    paths = {}
+    for name, source in (("true", "true"), ("csv", tmp_path / "field.csv")):
+        (tmp_path / "field.csv").write_text(FIELD_MAP)
+        out = tmp_path / name
+        assert main(["slam", "--sim", "square", "--duration", "60", "--map", str(source), "--out", str(out)]) == 0
+        metrics = json.loads((out / "metrics.json").read_text())
+        assert metrics["label"].startswith("EKF localisation on")
+        assert "landmark_error" not in metrics and "phantoms" not in metrics
+        assert metrics["robot_error"]["mean"] < 0.05 < 0.3 < metrics["odometry_error"]["mean"]  # here 0.019 / 0.416
+        assert json.loads((out / "map.json").read_text())["gp"] == [0.0, 3.175]
+        paths[name] = (out / "path.csv").read_text()
+    assert paths["true"] == paths["csv"]
+    assert main(["slam", "--sim", "square", "--duration", "60", "--map", "true", "--eif",
+                 "--out", str(tmp_path / "eif")]) == 0
+    assert json.loads((tmp_path / "eif" / "metrics.json").read_text())["label"] == "EIF localisation on the known map"
+
+
+def test_a_start_given_off_the_true_one_is_recovered_when_its_uncertainty_is_said(tmp_path):
+    """The square starts at (-1.2, -1.2, 0); a start 0.28 m and 0.2 rad off is found again with --start-std 0.2,0.2,
+    and not when the filter is told it is known to a centimetre (over-confident, the gate then refuses the poles)."""
+    errors = {}
+    for std in ("0.2,0.2", "0.01,0.01"):
+        out = tmp_path / std
+        assert main(["slam", "--sim", "square", "--duration", "60", "--map", "true", "--start=-1.0,-1.4,0.2",
+                     "--start-std", std, "--out", str(out)]) == 0
+        path = np.loadtxt(out / "path.csv", delimiter=",", skiprows=1)
+        assert path[0, 1:4] == pytest.approx([-1.0, -1.4, 0.2], abs=0.05)
+        errors[std] = json.loads((out / "metrics.json").read_text())["robot_error"]["mean"]
+    assert errors["0.2,0.2"] < 0.1 < 0.5 < errors["0.01,0.01"]  # here 0.059 and 1.6 m
+
+
+@pytest.mark.parametrize("text, message", [
+    ("class,x,y\nbp,1,2\nblue,3,4\n", "map.csv:3: class 'blue' names no landmark"),
+    ("class,x,y\nbp,1,2\nblue-pink,3,4\n", "map.csv:3: a second 'bp' pole"),
+    ("class,x,y\nbp,1,two\n", "map.csv:2: x and y must be finite numbers"),
+    ("class,x,y\nbp,1,nan\n", "map.csv:2: x and y must be finite numbers"),
+    ("class,x\nbp,1\n", "map.csv:1: header must be class,x,y"),
+    ("class,x,y\n", "map.csv: no poles"),
+])
+def test_a_bad_map_is_refused_by_its_line_before_anything_runs(text, message, tmp_path, capsys):
+    (tmp_path / "map.csv").write_text(text)
+    out = tmp_path / "o"
+    assert main(["slam", "--sim", "square", "--map", str(tmp_path / "map.csv"), "--out", str(out)]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--map", "missing.csv"], "no such map file"),
+    (["--eif"], "--eif is a localiser: give --map"),
+])
+def test_slam_refuses_bad_localisation_settings(argv, message, tmp_path, capsys):
+    assert main(["slam", "--sim", "square", *argv, "--out", str(tmp_path / "o")]) == 2
+    assert message in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv, message", [(["--start", "1,2"], "give X,Y,THETA as 3 numbers"),
+                                          (["--start-std", "0.1,inf"], "give METRES,RADIANS as 2 positive"),
+                                          (["--start-std", "0.1,0"], "give METRES,RADIANS as 2 positive")])
+def test_slam_refuses_a_start_that_is_not_its_numbers(argv, message, tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["slam", "--sim", "square", *argv, "--out", str(tmp_path / "o")])
+    assert exit_.value.code == 2 and message in capsys.readouterr().err
+
+
+def test_map_true_needs_a_simulated_walk(tmp_path, capsys):
+    frames, odometry = _recording(tmp_path)
+    assert main(["slam", "--frames", str(frames), "--odometry", str(odometry), "--frontend", "shipped",
+                 "--map", "true", "--out", str(tmp_path / "o")]) == 2
+    assert "--map true is a simulated walk's own map" in capsys.readouterr().err
