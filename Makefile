@@ -72,7 +72,8 @@ pole-model: $(STAMP)
 	# The operating threshold: best F1 on all 400 frames of a separate tuning set (one split holds them all).
 	$(BIN)/poles synth --out runs/pole-tune --images 400 --seed 99 $(POLE_SYNTH)
 	$(BIN)/poles split --data runs/pole-tune --out runs/pole-tune-all --ratios 0 0 1
-	$(BIN)/poles synth --out runs/pole-calib --images 135 --seed 5 --calibration-shots
+	# 195 shots: every class at 0.5-9 m (13 distances) and 0, +-10, +-20 deg (rule v18, 2026-11-25; 135 shots at 0.5-5 m before).
+	$(BIN)/poles synth --out runs/pole-calib --images 195 --seed 5 --calibration-shots
 	$(BIN)/poles export --weights $(FINAL)/weights/best.pt --out $(FINAL)/poles-yolov8n-seg.onnx \
 		--data runs/pole-tune --int8 --dynamic --force
 	# The noise the filter is told: what the model's masks show in the frames of nine rendered walks.

@@ -29,7 +29,7 @@ from naoslam.sim import PATHS
 DEFAULT_SYNTH_IMAGES = 500
 #: Thesis split: 70 % train, 20 % test, 10 % valid.
 SPLIT_RATIOS = {"train": 0.7, "test": 0.2, "valid": 0.1}
-CALIBRATION_RANGES_M = (0.5, 0.75, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0)
+CALIBRATION_RANGES_M = (0.5, 0.75, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0)
 CALIBRATION_ANGLES_DEG = (0.0, -10.0, 10.0, -20.0, 20.0)
 #: A landmark with fewer visible pixels than this is too small to annotate (and to learn from).
 MIN_LABEL_PIXELS = 15
