@@ -340,8 +340,9 @@ def build_parser() -> argparse.ArgumentParser:
     slam.add_argument("--eif", action="store_true", help="with --map: the information filter instead of the EKF")
     slam.add_argument("--start", type=_numbers("X,Y,THETA"), metavar="X,Y,THETA",
                       help="the filter's start pose (m, m, rad) in the map's frame (default: a simulated walk's true "
-                           "start, a recording's first odometry pose, a UTIAS log's first true pose)")
-    slam.add_argument("--start-std", type=_numbers("METRES,RADIANS", positive=True), metavar="METRES,RADIANS", default=(0.01, 0.01),
+                           "start, a recording's first odometry pose, a UTIAS log's origin)")
+    slam.add_argument("--start-std", type=_numbers("METRES,RADIANS", positive=True), metavar="METRES,RADIANS",
+                      default=(0.01, 0.01),
                       help="how well the start is known (default 0.01,0.01; e.g. 0.2,0.2 for a robot placed by hand)")
     slam.add_argument("--seed", type=_whole_number(0), default=0)
     slam.add_argument("--compare", type=_whole_number(1), metavar="SEEDS",
@@ -378,13 +379,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _slam(args: argparse.Namespace) -> int:
-    from calibration.run import load_calibration
-    from detector.datasets.io import output_folder
-    from detector.slam_reference import smooth
     from dataclasses import replace
 
     import numpy as np
 
+    from calibration.run import load_calibration
+    from detector.datasets.io import output_folder
+    from detector.slam_reference import smooth
     from detector.slam_run import (BACKENDS, FrontEnd, compare_backends, print_comparison, read_pole_map,
                                    recorded_sequence, sim_sequence, utias_sequence, write_outputs)
     from naoslam.atomic import write_json

@@ -64,8 +64,7 @@ class SlamConfig:
             raise ValueError(f"--min-views {self.min_views} must be at least 1")
         if not 0 <= self.min_separation_m < math.inf:
             raise ValueError(f"--min-separation {self.min_separation_m} must be a distance in metres, 0 or more")
-        if self.gate is not None and self.gate <= 0:
-            raise ValueError(f"--gate {self.gate} must be a positive chi-square bound (e.g. 9.21)")
+        observation.check_gate(self.gate)
         if self.linearisation not in LINEARISATIONS:
             raise ValueError(f"linearisation {self.linearisation!r} is not one of {', '.join(LINEARISATIONS)}")
         if self.association not in ASSOCIATIONS:

@@ -32,6 +32,7 @@ class _Localiser(ABC):
     def __init__(self, pose: np.ndarray, pose_cov: np.ndarray, landmarks: dict[str, tuple[float, float]],
                  motion: OdometryModel | VelocityModel, gate: float | None,
                  odometry_scale_std: tuple[float, float] | None):
+        observation.check_gate(gate)
         self.map = {k: np.asarray(v, dtype=float) for k, v in landmarks.items()}
         self.motion = motion
         self.gate = gate

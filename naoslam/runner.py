@@ -12,7 +12,7 @@ from naoslam.localisation import EifLocalisation, EkfLocalisation
 from naoslam.measurement import Measurement
 from naoslam.metrics import align_se2, chi2_band, error_stats
 from naoslam.motion import STRIDE_SCALE_STD, TURN_SCALE_STD, OdometryModel, VelocityModel
-from naoslam.observation import CHI2_2DOF_99
+from naoslam.observation import CHI2_2DOF_99, check_gate
 from naoslam.sim import Walk
 
 
@@ -140,6 +140,9 @@ class LocalisationConfig:
     self_calibrate: bool = True
     gate: float | None = CHI2_2DOF_99
     landmarks: dict[str, tuple[float, float]] | None = None
+
+    def __post_init__(self) -> None:
+        check_gate(self.gate)
 
     @property
     def label(self) -> str:

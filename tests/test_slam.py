@@ -195,6 +195,13 @@ def test_localisation_on_a_known_map_tracks_the_circle(filter_class):
 
 
 @pytest.mark.parametrize("filter_class", [EkfLocalisation, EifLocalisation])
+@pytest.mark.parametrize("gate", [0.0, -1.0, float("nan"), float("inf")])
+def test_a_localiser_refuses_a_gate_that_would_turn_every_sighting_away(filter_class, gate):
+    with pytest.raises(ValueError, match="must be a positive chi-square bound"):
+        filter_class(np.zeros(3), np.eye(3) * 1e-3, {"bp": (1.0, 0.0)}, OdometryModel(), gate=gate)
+
+
+@pytest.mark.parametrize("filter_class", [EkfLocalisation, EifLocalisation])
 def test_localisation_learns_a_misreported_stride(filter_class):
     """The sim's walk engine reports 1.25 times its stride and turns 4 % too far. The scales in the state settle on
     the true 0.8 and 1/1.04; the thesis's pose-only filter trusts the odometry and ends several times farther off."""

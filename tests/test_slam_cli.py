@@ -180,6 +180,7 @@ def test_a_bad_map_is_refused_by_its_line_before_anything_runs(text, message, tm
 @pytest.mark.parametrize("argv, message", [
     (["--map", "missing.csv"], "no such map file"),
     (["--eif"], "--eif is a localiser: give --map"),
+    (["--map", "true", "--gate", "-1"], "must be a positive chi-square bound"),
 ])
 def test_slam_refuses_bad_localisation_settings(argv, message, tmp_path, capsys):
     assert main(["slam", "--sim", "square", *argv, "--out", str(tmp_path / "o")]) == 2
