@@ -14,8 +14,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from detector.datasets.names import canonical_class
 from detector.datasets.io import csv_rows, require_decodable
+from detector.datasets.names import canonical_class
 from naoslam.atomic import atomic_path, write_json
 from naoslam.camera import CameraPose
 from naoslam.ekf_slam import SlamConfig
