@@ -88,13 +88,19 @@ def measure_samples(ranged: RangedDataset, detector: LandmarkDetector | None = N
                 box, column, mask, origin = found.rotated_box, found.centre_column, found.mask, found.mask_origin
             if box is None:
                 continue
-            foot = _foot(entry.get("camera"), mask, origin, width, height, hfov_deg)
+            view = _ground_view(entry.get("camera"), width, height, hfov_deg)
+            range_m, bearing = float(entry["range_m"]), entry.get("bearing_rad")
+            box_width, box_height = box.width, box.height
+            if view is not None:  # the laws are fitted on what a level camera sees, as measurements are taken
+                box_width, box_height = view.level_size(box_width, box_height, range_m,
+                                                        float(view.camera.bearing_of_column(column)))
+            foot = view.foot(mask, origin) if view is not None else None
             partial = entry.get("partial")
             if partial is None:  # a truth CSV does not say: a pole whose outline reaches the border is cut
                 partial = touches_border(instance.polygon)
-            samples.append(SizeSample(sample.image.name, instance.cls, float(entry["range_m"]), box.width, box.height,
-                                      column, width, bool(partial), entry.get("bearing_rad"),
-                                      entry.get("band_centre_distance_px"), *foot))
+            samples.append(SizeSample(sample.image.name, instance.cls, range_m, box_width, box_height,
+                                      column, width, bool(partial), bearing, entry.get("band_centre_distance_px"),
+                                      foot.range_m if foot else None, view.foot_range_std(foot) if foot else None))
     if not samples:
         raise ValueError(f"{dataset.root}: no pole with a true range could be measured"
                          + (f" - {detector.path} found none of them" if detector else ""))
@@ -115,15 +121,12 @@ def _matching_detection(detections, cls: str, label_mask: np.ndarray):
     return same[best] if overlap[best] >= MATCH_IOU else None
 
 
-def _foot(camera: dict | None, mask: np.ndarray | None, origin: tuple[int, int], width: int, height: int,
-          hfov_deg: float) -> tuple[float | None, float | None]:
-    """Foot-row range and its standard deviation when the image's camera pose is known and the foot is in view."""
-    if not camera or mask is None:
-        return None, None
-    view = GroundView(PinholeCamera(width, height, hfov_deg),
+def _ground_view(camera: dict | None, width: int, height: int, hfov_deg: float) -> GroundView | None:
+    """The image's camera over the floor when its pose is known (``annotations.json``'s ``camera``), else None."""
+    if not camera:
+        return None
+    return GroundView(PinholeCamera(width, height, hfov_deg),
                       CameraPose(z=camera["height_m"], pitch=camera["pitch_rad"], roll=camera["roll_rad"]))
-    foot = view.foot(mask, origin)
-    return (foot.range_m, view.foot_range_std(foot)) if foot else (None, None)
 
 
 #: How close (normalised) an outline must come to the image border to count as cut by it.

@@ -117,6 +117,32 @@ class GroundView:
             return None
         return Foot(front + self.pole.radius, float(math.atan2(point[1], point[0])), v)
 
+    def level_size(self, width_px: float, height_px: float, range_m: float,
+                   bearing_rad: float) -> tuple[float, float]:
+        """A pole's box size as a level, upright camera at the same height would see it at ``range_m`` and
+        ``bearing_rad``: the size the range laws were fitted on. A camera pitched by p images what stands near the
+        horizon about 1 / cos^2 p taller and 1 / cos p wider (8 deg: 2.0 % and 1.0 %) and a near pole below it
+        shorter, which a level law reads as nearer or farther. Sizes are kept where the pole is behind either camera."""
+        level = GroundView(self.camera, CameraPose(z=self.pose.z), self.pole)
+        seen, flat = self._pole_size_px(range_m, bearing_rad), level._pole_size_px(range_m, bearing_rad)
+        if seen is None or flat is None or min(*seen, *flat) <= 0:
+            return width_px, height_px
+        return width_px * flat[0] / seen[0], height_px * flat[1] / seen[1]
+
+    def _pole_size_px(self, range_m: float, bearing_rad: float) -> tuple[float, float] | None:
+        """Pixel width (across the pole at half its height) and length (base's near edge to top's far edge) of an
+        upright pole whose axis stands at ``range_m``, ``bearing_rad``; None when a point is behind the camera."""
+        along = np.array([math.cos(bearing_rad), math.sin(bearing_rad), 0.0])
+        across = np.array([-along[1], along[0], 0.0])
+        radius, height = self.pole.radius, np.array([0.0, 0.0, self.pole.height])
+        axis = range_m * along
+        ends = [self.project(p) for p in (axis - radius * along, axis + radius * along + height,
+                                          axis + height / 2 - radius * across, axis + height / 2 + radius * across)]
+        if any(p is None for p in ends):
+            return None
+        base, top, left, right = ends
+        return float(np.hypot(*(right - left))), float(np.hypot(*(top - base)))
+
     def expected_height_px(self, foot: Foot) -> float:
         """Pixel height of a whole upright pole standing at ``foot``: from its base's near edge to its top's far
         edge (the camera looks down on the top)."""

@@ -156,9 +156,11 @@ THESIS_CONF = 0.85
 class MeasurementModel:
     """Turns front-end detections into measurements with a calibration (confidence threshold as the thesis: 0.85).
 
-    With the camera's pose, a pole whose foot is in the frame also gets the foot-row range (:mod:`naoslam.ground`),
-    fused with the power-law range by inverse variance, and the foot's bearing (exact under camera roll).
-    ``pitch_std_rad`` is how well the pose's pitch is known; it sets the foot-row range's uncertainty.
+    With the camera's pose, the box is first taken to the size a level camera would see
+    (:meth:`naoslam.ground.GroundView.level_size`, as the laws were fitted), and a pole whose foot is in the frame
+    also gets the foot-row range (:mod:`naoslam.ground`), fused with the power-law range by inverse variance, and
+    the foot's bearing (exact under camera roll). ``pitch_std_rad`` is how well the pose's pitch is known; it sets
+    the foot-row range's uncertainty.
     """
 
     def __init__(self, calibration: RangeCalibration, min_confidence: float = THESIS_CONF, range_method: str = "fused",
@@ -184,10 +186,14 @@ class MeasurementModel:
         for d in detections:
             if d.confidence < self.min_confidence or d.rotated_box is None:
                 continue
-            range_m, range_std, used = self.calibration.range_from_box(d.rotated_box.width, d.rotated_box.height,
-                                                                       image_width, self.range_method,
-                                                                       d.centre_column)
             bearing = bearing_of_column(d.centre_column, image_width, self.calibration.hfov_deg, self.linear_bearing)
+            width, height = d.rotated_box.width, d.rotated_box.height
+            range_m, range_std, used = self.calibration.range_from_box(width, height, image_width,
+                                                                       self.range_method, d.centre_column)
+            if view is not None:
+                width, height = view.level_size(width, height, range_m, bearing)
+                range_m, range_std, used = self.calibration.range_from_box(width, height, image_width,
+                                                                           self.range_method, d.centre_column)
             foot = view.foot(d.mask, d.mask_origin) if view is not None else None
             if foot is not None:
                 foot_std = view.foot_range_std(foot, pitch_std_rad=self.pitch_std_rad)

@@ -60,8 +60,9 @@ def test_calibration_shots_recover_the_camera_law(calibration_shots):
     # The laws are fitted on on-axis sizes, so poles shot at +-10 and +-20 deg fit them as tightly as those ahead;
     # the filter is still told the noise of a walking robot's frames, which still shots understate.
     assert calibration.off_axis_corrected
-    # (the shots reach 9 m, where a pole is 7 px wide and half a pixel is 7 %: the width law's residual is the wider)
-    assert report["width"]["relative_std"] < 0.06 and report["height"]["relative_std"] < 0.03
+    # (the shots reach 9 m, where a pole is 7 px wide and half a pixel is 7 %, and the camera rolls up to 3 deg,
+    # which widens a tilted pole's box by 0.5-1.5 px: the width law's residual is the wider)
+    assert report["width"]["relative_std"] < 0.10 and report["height"]["relative_std"] < 0.03
     assert calibration.width_law.relative_std == WALK_RELATIVE_STD["width"]
     assert calibration.height_law.relative_std == WALK_RELATIVE_STD["height"]
 
@@ -113,10 +114,13 @@ def test_noise_data_without_true_ranges_is_refused_before_anything_is_measured(c
 
 
 def test_the_minimal_annotations_json_a_team_writes_gives_the_same_sizes_and_ranges(synth_dataset, dataset_copy):
-    """README, "Range calibration": each image's landmarks as {cls, range_m}, in its label file's order."""
+    """README, "Range calibration": each image's landmarks as {cls, range_m}, in its label file's order, and the
+    camera's pose, which takes the sizes to a level camera's."""
     full = json.loads((synth_dataset / "annotations.json").read_text())["images"]
     minimal = {"images": {name: {"landmarks": [{"cls": lm["cls"], "range_m": lm["range_m"]}
-                                               for lm in entry["landmarks"]]} for name, entry in full.items()}}
+                                               for lm in entry["landmarks"]],
+                                 "camera": {key: entry["camera"][key] for key in ("height_m", "pitch_rad", "roll_rad")}}
+                          for name, entry in full.items()}}
     (dataset_copy / "annotations.json").write_text(json.dumps(minimal))
     expected = measure_samples(open_ranged(synth_dataset, progress=False), progress=False)
     written = measure_samples(open_ranged(dataset_copy, progress=False), progress=False)

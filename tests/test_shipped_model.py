@@ -142,7 +142,8 @@ def test_localisation_through_the_shipped_detector_follows_the_robot(robot_walk,
         filter_.update(measure.measure(detector(frame, camera), frame.shape[1], camera, frame.shape[0]))
         errors.append(np.hypot(*(filter_.pose[:2] - true_pose[:2])))
         drift.append(np.hypot(*(odometry[:2] - true_pose[:2])))  # the sim's odometry starts at the true pose
-    assert np.mean(errors) < 0.13 and np.mean(errors) < 0.35 * np.mean(drift)  # here 0.10 m against 0.37 m
+    # here 0.046 m against 0.37 m (0.10 m before the sizes were taken to a level camera: ranges ran 1.2 % short)
+    assert np.mean(errors) < 0.07 and np.mean(errors) < 0.2 * np.mean(drift)
     assert filter_.odometry_scales[0] == pytest.approx(1 / 1.25, abs=0.05)
 
 
@@ -172,7 +173,7 @@ def test_poles_slam_localises_a_recording_on_a_map_of_the_field(robot_walk, tmp_
     odometry = {round(step.t, 3): step.odometry_pose for step in walk.steps}
     errors = [np.hypot(*(row[1:3] - truth[round(row[0], 3)][:2])) for row in path]
     drift = [np.hypot(*(odometry[round(row[0], 3)][:2] - truth[round(row[0], 3)][:2])) for row in path]
-    assert np.mean(errors) < 0.13 and np.mean(errors) < 0.35 * np.mean(drift)
+    assert np.mean(errors) < 0.07 and np.mean(errors) < 0.2 * np.mean(drift)
     assert json.loads((out / "metrics.json").read_text())["odometry_scales"]["stride"] == pytest.approx(0.8, abs=0.05)
 
 

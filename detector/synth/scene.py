@@ -105,10 +105,19 @@ def sample_scene(rng: np.random.Generator, camera: PinholeCamera, config: SceneC
     return scene
 
 
+#: Camera roll of a calibration shot, drawn in +-this (deg): a pole tilted in the image by a degree or two has a
+#: rotated box 0.5-1.5 px wider than an upright one (the pixel staircase along its sides), as in every robot frame.
+CALIBRATION_ROLL_DEG = 3.0
+
+
 def calibration_scene(rng: np.random.Generator, camera: PinholeCamera, code: str, range_m: float, angle_deg: float,
                       config: SceneConfig = SceneConfig()) -> Scene:
-    """One upright pole at a known range and bearing, camera level and upright, like the thesis's calibration photos."""
-    pose = CameraPose(x=-2.0, y=0.0, z=float(np.mean(config.camera_height)), yaw=0.0, pitch=math.radians(rng.uniform(0, 4)))
+    """One upright pole at a known range and bearing, the camera nearly level and upright, like the thesis's
+    calibration photos. The camera stands 4.5 m behind the field's centre, so a pole 9 m ahead is still inside the
+    smallest room (whose walls stand at least 5.5 m from the centre) and not hidden behind its wall."""
+    pose = CameraPose(x=-4.5, y=0.0, z=float(np.mean(config.camera_height)), yaw=0.0,
+                      pitch=math.radians(rng.uniform(0, 4)),
+                      roll=math.radians(rng.uniform(-CALIBRATION_ROLL_DEG, CALIBRATION_ROLL_DEG)))
     scene = Scene(camera, pose, _lighting(rng), _room(rng), effects_seed=int(rng.integers(2**31)), jpeg_quality=92)
     angle = math.radians(angle_deg)
     scene.cylinders.append(pole(code, pose.x + range_m * math.cos(angle), pose.y + range_m * math.sin(angle), config.pole))
