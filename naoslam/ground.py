@@ -123,11 +123,15 @@ class GroundView:
         ``bearing_rad``: the size the range laws were fitted on. A camera pitched by p images what stands near the
         horizon about 1 / cos^2 p taller and 1 / cos p wider (8 deg: 2.0 % and 1.0 %) and a near pole below it
         shorter, which a level law reads as nearer or farther. Sizes are kept where the pole is behind either camera."""
-        level = GroundView(self.camera, CameraPose(z=self.pose.z), self.pole)
-        seen, flat = self._pole_size_px(range_m, bearing_rad), level._pole_size_px(range_m, bearing_rad)
+        seen, flat = self._pole_size_px(range_m, bearing_rad), self._level._pole_size_px(range_m, bearing_rad)
         if seen is None or flat is None or min(*seen, *flat) <= 0:
             return width_px, height_px
         return width_px * flat[0] / seen[0], height_px * flat[1] / seen[1]
+
+    @cached_property
+    def _level(self) -> "GroundView":
+        """The same camera at the same height, level and upright."""
+        return GroundView(self.camera, CameraPose(z=self.pose.z), self.pole)
 
     def _pole_size_px(self, range_m: float, bearing_rad: float) -> tuple[float, float] | None:
         """Pixel width (across the pole at half its height) and length (base's near edge to top's far edge) of an
