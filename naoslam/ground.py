@@ -133,31 +133,35 @@ class GroundView:
         """The same camera at the same height, level and upright."""
         return GroundView(self.camera, CameraPose(z=self.pose.z), self.pole)
 
-    def _pole_size_px(self, range_m: float, bearing_rad: float) -> tuple[float, float] | None:
-        """Pixel width (across the pole at half its height) and length (base's near edge to top's far edge) of an
-        upright pole whose axis stands at ``range_m``, ``bearing_rad``; None when a point is behind the camera."""
+    def _pole_points_px(self, range_m: float, bearing_rad: float) -> list[np.ndarray] | None:
+        """Pixels of an upright pole whose axis stands at ``range_m``, ``bearing_rad``: its base's near edge, its
+        top's far edge (the camera looks down on the top), and its left and right edges at half its height; None
+        when a point is behind the camera."""
         along = np.array([math.cos(bearing_rad), math.sin(bearing_rad), 0.0])
         across = np.array([-along[1], along[0], 0.0])
         radius, height = self.pole.radius, np.array([0.0, 0.0, self.pole.height])
         axis = range_m * along
-        ends = [self.project(p) for p in (axis - radius * along, axis + radius * along + height,
-                                          axis + height / 2 - radius * across, axis + height / 2 + radius * across)]
-        if any(p is None for p in ends):
+        points = [self.project(p) for p in (axis - radius * along, axis + radius * along + height,
+                                            axis + height / 2 - radius * across, axis + height / 2 + radius * across)]
+        return None if any(p is None for p in points) else points
+
+    def _pole_size_px(self, range_m: float, bearing_rad: float) -> tuple[float, float] | None:
+        """Pixel width (across the pole at half its height) and length (base's near edge to top's far edge) of an
+        upright pole at ``range_m``, ``bearing_rad``; None when a point is behind the camera."""
+        points = self._pole_points_px(range_m, bearing_rad)
+        if points is None:
             return None
-        base, top, left, right = ends
+        base, top, left, right = points
         return float(np.hypot(*(right - left))), float(np.hypot(*(top - base)))
 
     def expected_height_px(self, foot: Foot) -> float:
         """Pixel height of a whole upright pole standing at ``foot``: from its base's near edge to its top's far
         edge (the camera looks down on the top)."""
-        c, s = math.cos(foot.bearing_rad), math.sin(foot.bearing_rad)
-        bottom = self.project(np.array([(foot.range_m - self.pole.radius) * c, (foot.range_m - self.pole.radius) * s,
-                                        0.0]))
-        top = self.project(np.array([(foot.range_m + self.pole.radius) * c, (foot.range_m + self.pole.radius) * s,
-                                     self.pole.height]))
-        if bottom is None or top is None:
+        points = self._pole_points_px(foot.range_m, foot.bearing_rad)
+        if points is None:
             return math.nan
-        return float(bottom[1] - top[1])
+        base, top = points[:2]
+        return float(base[1] - top[1])
 
     def foot_range_std(self, foot: Foot, pixel_std: float = FOOT_ROW_STD_PX,
                        pitch_std_rad: float = math.radians(0.5)) -> float:
