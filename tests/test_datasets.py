@@ -14,6 +14,7 @@ import pytest
 from detector.cli import main
 from detector.datasets import DatasetError, load_dataset, write_dataset
 from detector.datasets.check import check_dataset, write_fixed_copy
+from detector.datasets.intake import open_dataset
 from detector.datasets.names import canonical_class
 from naoslam.landmarks import CLASSES
 
@@ -228,11 +229,11 @@ def test_training_bars_become_log_lines_only_where_nothing_redraws(monkeypatch, 
     assert sys.stdout is stdout
 
 
-def test_require_clean_lists_problems(dataset_copy):
+def test_open_dataset_refuses_errors_naming_the_file(dataset_copy):
     label = _first_labelled(dataset_copy)
     _append_line(label, "0 0.1 0.1")
     with pytest.raises(DatasetError, match=f"{label.name}:"):
-        load_dataset(dataset_copy).require_clean()
+        open_dataset(dataset_copy, progress=False)
 
 
 def _to_coco(root: Path, out: Path, category_order: list[str]) -> None:

@@ -92,7 +92,6 @@ def test_a_calibration_shots_farthest_pole_stands_inside_every_room():
     for seed in range(12):
         rng = np.random.default_rng(seed)
         scene = calibration_scene(rng, camera, "bp", max(CALIBRATION_RANGES_M), (-20.0, 0.0, 20.0)[seed % 3])
-        scene.effects = False
         (shot,) = render_scene(scene).poles
         assert shot.visible_fraction > 0.95, (seed, shot.visible_fraction)
 

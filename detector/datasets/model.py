@@ -92,9 +92,3 @@ class Dataset:
                     if file.parent.name in ("images", "labels"):
                         folders.add(file.parent.parent.resolve())
         return tuple(sorted(folders))
-
-    def require_clean(self) -> "Dataset":
-        """Return self, or raise DatasetError when reading found errors."""
-        if self.errors:
-            raise DatasetError(self.errors)
-        return self

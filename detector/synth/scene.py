@@ -65,7 +65,6 @@ class Scene:
     quads: list[Quad] = field(default_factory=list)
     effects_seed: int = 0
     jpeg_quality: int = 90
-    effects: bool = True
     backdrop: BackdropShot | None = None
 
 
