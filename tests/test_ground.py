@@ -25,7 +25,7 @@ POSE = CameraPose(z=0.5, pitch=math.radians(20), roll=math.radians(3))
 
 def _rendered(cylinders: list[Cylinder], pose: CameraPose = POSE):
     rng = np.random.default_rng(0)
-    scene = Scene(CAMERA, pose, _lighting(rng), _room(rng), cylinders=cylinders, effects=False)
+    scene = Scene(CAMERA, pose, _lighting(rng), _room(rng), cylinders=cylinders)
     return render_scene(scene)
 
 
