@@ -282,6 +282,58 @@ def test_coco_rle_is_refused(synth_dataset, tmp_path):
     assert any("RLE" in p.message for p in load_dataset(tmp_path / "coco").errors)
 
 
+def _store_turned(image: Path) -> np.ndarray:
+    """Re-save ``image`` as a phone does: pixels stored a quarter turn back, EXIF orientation 6 to turn them
+    upright. Returns the upright pixels as OpenCV now reads them."""
+    import cv2
+    from PIL import Image
+
+    upright = cv2.imread(str(image))
+    stored = Image.fromarray(cv2.rotate(upright, cv2.ROTATE_90_COUNTERCLOCKWISE)[:, :, ::-1])
+    exif = stored.getexif()
+    exif[0x0112] = 6
+    stored.save(image, format="PNG" if image.suffix == ".png" else "JPEG", quality=95, exif=exif.tobytes())
+    return cv2.imread(str(image))
+
+
+def test_coco_image_stored_turned_is_read_upright_and_a_stored_size_is_refused(synth_dataset, tmp_path):
+    """Polygons drawn on the upright image (the declared size is the upright one) load as they are; a file that
+    declares the stored size was drawn on the unturned pixels and is refused, naming the tag and the fix."""
+    _to_coco(synth_dataset, tmp_path / "coco", list(CLASSES))
+    json_path = tmp_path / "coco" / "train" / "_annotations.coco.json"
+    coco = json.loads(json_path.read_text())
+    entry = next(i for i in coco["images"] if any(a["image_id"] == i["id"] for a in coco["annotations"]))
+    upright = _store_turned(json_path.parent / entry["file_name"])
+    assert upright.shape[:2] == (entry["height"], entry["width"])
+    reference = {s.image.name: s for s in load_dataset(synth_dataset).samples}[entry["file_name"]]
+    loaded = {s.image.name: s for s in load_dataset(tmp_path / "coco").samples}[entry["file_name"]]
+    assert load_dataset(tmp_path / "coco").errors == []
+    for a, b in zip(loaded.instances, reference.instances, strict=True):
+        np.testing.assert_allclose(a.polygon, b.polygon, atol=1e-6)
+    entry["width"], entry["height"] = entry["height"], entry["width"]
+    json_path.write_text(json.dumps(coco))
+    errors = load_dataset(tmp_path / "coco").errors
+    assert len(errors) == 1 and "EXIF orientation 6" in errors[0].message and "Auto-Orient" in errors[0].fix
+
+
+def test_check_warns_of_an_image_stored_turned_and_fix_writes_it_upright(dataset_copy, tmp_path):
+    from detector.datasets.orientation import UPRIGHT, encoded_orientation
+
+    label = _first_labelled(dataset_copy)
+    image = next((dataset_copy / "train" / "images").glob(label.stem + ".*"))
+    upright = _store_turned(image)
+    report = check_dataset(dataset_copy, progress=False)
+    assert report.errors == []
+    assert [p.path for p in report.problems if "EXIF orientation 6" in p.message] == [image]
+    fixed = write_fixed_copy(report, tmp_path / "fixed") / "train" / "images" / image.name
+    assert encoded_orientation(fixed.read_bytes()) == UPRIGHT
+    import cv2
+    rewritten = cv2.imread(str(fixed))
+    assert rewritten.shape == upright.shape and np.abs(rewritten.astype(int) - upright).mean() < 2.0
+    assert (fixed.parents[1] / "labels" / label.name).read_text() == label.read_text()
+    assert check_dataset(tmp_path / "fixed", progress=False).problems == []
+
+
 def test_write_dataset_refuses_to_overwrite(synth_dataset, tmp_path):
     out = write_dataset(tmp_path / "out", load_dataset(synth_dataset))
     with pytest.raises(FileExistsError, match="--force"):

@@ -15,6 +15,7 @@ from detector.console import make_console, show_progress
 from detector.datasets.io import DatasetWriter, load_dataset
 from detector.datasets.labels import BOX_ONLY
 from detector.datasets.model import SPLITS, Dataset, DatasetError, Problem, Sample
+from detector.datasets.orientation import UPRIGHT, encoded_orientation
 from naoslam.atomic import write_text
 from naoslam.landmarks import CLASSES
 
@@ -69,6 +70,12 @@ def _image_size(sample: Sample, problems: list[Problem]) -> tuple[int, int] | No
     if truncated:
         problems.append(Problem("warning", sample.image, None, "JPEG is truncated (no end marker); its bottom may be grey",
                                 "re-export the image; `--fix` re-encodes what decodes"))
+    orientation = encoded_orientation(data.tobytes())
+    if orientation != UPRIGHT:
+        problems.append(Problem("warning", sample.image, None, f"stored turned or mirrored (EXIF orientation "
+                                f"{orientation}); it is read upright everywhere, so its outlines must have been drawn "
+                                "on the upright image", "nothing if they were (Roboflow's Auto-Orient does it); "
+                                "`--fix` writes the image upright without the tag"))
     return image.shape[1], image.shape[0]
 
 
@@ -142,7 +149,8 @@ def _kind(message: str) -> str:
 
 
 def write_fixed_copy(report: CheckReport, out: str | Path, force: bool = False) -> Path:
-    """Write a cleaned copy: bad label lines dropped, coordinates clipped, unreadable images and orphan labels left out.
+    """Write a cleaned copy: bad label lines dropped, coordinates clipped, unreadable images and orphan labels left out,
+    truncated JPEGs re-encoded and images stored turned (EXIF orientation) written upright.
 
     Stems that collide across splits keep their first split only. The input is never written. A dataset that could
     not be read at all, or whose labels are boxes, is refused: a "cleaned" copy would hold images without poles.
@@ -159,14 +167,18 @@ def write_fixed_copy(report: CheckReport, out: str | Path, force: bool = False) 
             if sample.image is None or sample.image in report.unreadable or sample.stem in seen:
                 continue
             seen.add(sample.stem)
-            encoded = _reencode_if_truncated(sample.image)
+            encoded = _repaired_image(sample.image)
             writer.add(sample.split, sample.image.name, encoded, sample.instances)
     return writer.out
 
 
-def _reencode_if_truncated(path: Path) -> bytes | Path:
+def _repaired_image(path: Path) -> bytes | Path:
+    """A truncated JPEG re-encoded from what decodes, an image stored turned written upright without its EXIF
+    tag (OpenCV writes none), anything else the file itself."""
     data = np.fromfile(path, np.uint8)
-    if path.suffix.lower() in (".jpg", ".jpeg") and data[-2:].tobytes() != b"\xff\xd9":
-        ok, encoded = cv2.imencode(".jpg", cv2.imdecode(data, cv2.IMREAD_COLOR), [cv2.IMWRITE_JPEG_QUALITY, 95])
-        return encoded.tobytes()
-    return path
+    truncated = path.suffix.lower() in (".jpg", ".jpeg") and data[-2:].tobytes() != b"\xff\xd9"
+    if not truncated and encoded_orientation(data.tobytes()) == UPRIGHT:
+        return path
+    quality = [cv2.IMWRITE_JPEG_QUALITY, 95] if path.suffix.lower() in (".jpg", ".jpeg") else []
+    _, encoded = cv2.imencode(path.suffix, cv2.imdecode(data, cv2.IMREAD_COLOR), quality)
+    return encoded.tobytes()

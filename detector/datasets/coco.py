@@ -5,11 +5,11 @@ import json
 from pathlib import Path
 
 import numpy as np
-from PIL import Image
 
 from detector.datasets.io import IMAGE_SUFFIXES
 from detector.datasets.model import SPLITS, Dataset, Instance, Problem, Sample
 from detector.datasets.names import class_codes
+from detector.datasets.orientation import stored_and_upright_size
 from detector.datasets.polygons import merge_polygons, polygon_area
 from detector.datasets.labels import BOX_ONLY, MIN_NORMALISED_AREA
 
@@ -97,22 +97,29 @@ def _categories(raw: list, json_path: Path, problems: list[Problem], renames: di
 
 
 def _image_size(image: dict, image_path: Path, json_path: Path, problems: list[Problem]) -> np.ndarray | None:
-    """The image's real size, read from its header (``poles check`` decodes the pixels); an error when COCO declares
-    another (polygons would be scaled wrongly)."""
+    """The image's upright size (its EXIF orientation applied, as every reader here decodes it), read from its
+    header (``poles check`` decodes the pixels); an error when COCO declares another (polygons would be scaled or
+    turned wrongly)."""
     try:
-        with Image.open(image_path) as header:
-            width, height = header.size
+        stored, upright, orientation = stored_and_upright_size(image_path)
     except (OSError, ValueError):
         problems.append(Problem("error", image_path, None, "image cannot be decoded (corrupt or not an image)",
                                 "re-export or delete the image"))
         return None
     declared = (image.get("width"), image.get("height"))
-    if declared != (None, None) and declared != (width, height):
-        problems.append(Problem("error", json_path, None, f"image {image['file_name']!r} is declared {declared[0]}x"
-                                f"{declared[1]} but is {width}x{height}", "re-export the dataset (polygons are in the "
-                                "declared size's pixels)"))
+    if declared != (None, None) and declared != upright:
+        if declared == stored:
+            problems.append(Problem("error", json_path, None, f"image {image['file_name']!r} is stored turned (EXIF "
+                                    f"orientation {orientation}) and read upright as {upright[0]}x{upright[1]}, but "
+                                    f"the file declares the stored {stored[0]}x{stored[1]}: its polygons were drawn "
+                                    "on the unturned pixels", "re-export with Roboflow's Auto-Orient preprocessing "
+                                    "(or save the images upright, without the tag, and label them again)"))
+        else:
+            problems.append(Problem("error", json_path, None, f"image {image['file_name']!r} is declared "
+                                    f"{declared[0]}x{declared[1]} but is {upright[0]}x{upright[1]}", "re-export the "
+                                    "dataset (polygons are in the declared size's pixels)"))
         return None
-    return np.array([width, height], np.float64)
+    return np.array(upright, np.float64)
 
 
 def _instance(annotation: dict, categories: dict, size: np.ndarray, json_path: Path, problems: list[Problem]):
