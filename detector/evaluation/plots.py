@@ -6,6 +6,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from matplotlib.ticker import MaxNLocator
 
 from detector.evaluation.counting import ImageEvaluation
 from detector.figures import plt, save_figure
@@ -14,10 +15,12 @@ from naoslam.atomic import write_bytes
 COUNT_COLOURS = {"tp": "#2ca02c", "fp": "#d62728", "fn": "#ff7f0e", "tn": "#1f77b4"}
 #: BGR colours of the overlays: matched detections, false positives, missed labels.
 TP_BGR, FP_BGR, FN_BGR = (255, 160, 0), (0, 0, 255), (0, 220, 255)
+#: Up to this many images, the per-image bars are labelled with the images' names.
+MAX_NAMED_IMAGES = 40
 
 
 def plot_per_image(per_image: list[dict], png: Path, title: str) -> Path:
-    """Stacked bars of TP, FP, FN and TN for every image."""
+    """Stacked bars of TP, FP, FN and TN for every image, named when there are few."""
     fig, ax = plt.subplots(figsize=(max(6, 0.12 * len(per_image) + 2), 3.2), constrained_layout=True)
     x = np.arange(len(per_image))
     bottom = np.zeros(len(per_image))
@@ -25,6 +28,10 @@ def plot_per_image(per_image: list[dict], png: Path, title: str) -> Path:
         values = np.array([row[key] for row in per_image])
         ax.bar(x, values, bottom=bottom, color=colour, label=key.upper(), width=0.9)
         bottom += values
+    if len(per_image) <= MAX_NAMED_IMAGES:
+        ax.set_xticks(x, [Path(row["image"]).stem for row in per_image], rotation=90, fontsize=7)
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_ylim(0, bottom.max(initial=0) + 1)  # headroom for the legend
     ax.set_xlabel("image")
     ax.set_ylabel("count")
     ax.set_title(f"{title}: per-image counts")
