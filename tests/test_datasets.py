@@ -27,6 +27,15 @@ def _problems(root: Path, severity: str = "error"):
     return [p for p in check_dataset(root, progress=False).problems if p.severity == severity]
 
 
+@pytest.mark.parametrize("name, code", [
+    ("BP", "bp"), ("b-p", "bp"), ("Blue over Pink", "bp"), ("sky blue / pink", "bp"), ("pink/green", "pg"),
+    ("pole_bp", "bp"), ("PY pole", "py"), ("landmark-gp", "gp"),
+    ("green", None), ("ball-pole", None), ("bp or pb", None), ("blue pole bp", None), ("pink-pink", None),
+])
+def test_class_names_map_to_codes_or_to_none(name, code):
+    assert canonical_class(name) == code
+
+
 def test_synthetic_dataset_is_clean_and_canonical(synth_dataset):
     report = check_dataset(synth_dataset, progress=False)
     assert report.errors == []

@@ -17,8 +17,9 @@ _COLOUR_LETTER = {"pink": "p", "magenta": "p", "blue": "b", "skyblue": "b", "cya
 def canonical_class(name: str) -> str | None:
     """The canonical code for a dataset's class name, or None when it names no landmark.
 
-    Accepts the codes themselves in any case (``"BP"``), with separators (``"b-p"``), and colour words
-    top band first (``"blue-pink"``, ``"Blue over Pink"``, ``"sky blue / pink"``).
+    Accepts the codes themselves in any case (``"BP"``), with separators (``"b-p"``), beside other words
+    (``"pole_bp"``, ``"BP pole"``), and colour words top band first (``"blue-pink"``, ``"Blue over Pink"``,
+    ``"sky blue / pink"``).
     """
     text = str(name).strip().lower()
     compact = re.sub(r"[^a-z]", "", text)
@@ -26,8 +27,11 @@ def canonical_class(name: str) -> str | None:
         return compact
     words = re.findall(r"[a-z]+", text.replace("sky blue", "skyblue"))
     letters = [_COLOUR_LETTER[w] for w in words if w in _COLOUR_LETTER]
-    code = "".join(letters)
-    return code if code in CLASSES else None
+    if letters:
+        code = "".join(letters)
+        return code if code in CLASSES else None
+    codes = [w for w in words if w in CLASSES]
+    return codes[0] if len(codes) == 1 else None
 
 
 def parse_renames(pairs: list[str] | None) -> dict[str, str]:
