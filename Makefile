@@ -37,8 +37,8 @@ BACKGROUNDS ?= ../shared/real-backgrounds
 DEVICE ?= cpu
 POLE_TRAIN = --model yolov8n-seg --imgsz 640 --batch 64 --workers 14 --patience 100 --device $(DEVICE)
 POLE_SYNTH = --backgrounds $(BACKGROUNDS) --backdrop-share 0.75
-# Stage 5's run: its best.pt is what ships.
-FINAL = runs/pole-model-5
+# Stage 15's blend: its best.pt is what ships.
+FINAL = runs/pole-model-15
 # Rendered walks whose frames measure a walking robot's range noise (not the seeds README's SLAM figures use).
 WALKS = square circle figure8
 WALK_SEEDS = 10 11 12
@@ -67,8 +67,18 @@ pole-model: $(STAMP)
 	# Stage 5 (model v5, shipped): v4 fine-tuned on one H100 for 0.3 hours (one run) on 12,000 fresh frames of the
 	# same renderer.
 	$(BIN)/poles synth --out runs/pole-data-5 --images 12000 --seed 2033 $(POLE_SYNTH)
-	$(BIN)/poles train --data runs/pole-data-5 --out $(FINAL) --weights runs/pole-model-4/weights/best.pt \
+	$(BIN)/poles train --data runs/pole-data-5 --out runs/pole-model-5 --weights runs/pole-model-4/weights/best.pt \
 		$(POLE_TRAIN) --time 0.30 --seed 2033
+	# Stage 14: v5 fine-tuned with its own recipe on 12,000 frames of the current renderer (one H100, 0.3 hours;
+	# rendered at commit bbca580). Not shipped alone (rules v24, v25).
+	$(BIN)/poles synth --out runs/pole-data-14 --images 12000 --seed 2042 $(POLE_SYNTH)
+	$(BIN)/poles train --data runs/pole-data-14 --out runs/pole-model-14 --weights runs/pole-model-5/weights/best.pt \
+		$(POLE_TRAIN) --time 0.30 --seed 2042
+	# Stage 15 (model v6, shipped): no training, the weight-space blend 0.25 v5 + 0.75 stage 14 (rule v26; alpha
+	# chosen among 0.25, 0.5 and 0.75 on the tuning set below).
+	mkdir -p $(FINAL)/weights
+	$(BIN)/poles soup --weights runs/pole-model-5/weights/best.pt runs/pole-model-14/weights/best.pt --alpha 0.75 \
+		--out $(FINAL)/weights/best.pt --force
 	# The operating threshold: best F1 on all 400 frames of a separate tuning set (one split holds them all).
 	$(BIN)/poles synth --out runs/pole-tune --images 400 --seed 99 $(POLE_SYNTH)
 	$(BIN)/poles split --data runs/pole-tune --out runs/pole-tune-all --ratios 0 0 1

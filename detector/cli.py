@@ -258,6 +258,13 @@ def build_parser() -> argparse.ArgumentParser:
                              "horizon alone when it knows the camera pose")
     export.add_argument("--force", action="store_true", help="replace existing output files")
 
+    soup = sub.add_parser("soup", help="blend two checkpoints of one network: (1 - alpha) * first + alpha * second")
+    soup.add_argument("--weights", type=Path, nargs=2, required=True, metavar=("FIRST", "SECOND"),
+                      help="two checkpoints of one architecture, e.g. the shipped model's and your fine-tune of it")
+    soup.add_argument("--alpha", type=float, required=True, help="the second checkpoint's share, 0-1")
+    soup.add_argument("--out", type=Path, required=True, help="checkpoint to write (export it with `poles export`)")
+    soup.add_argument("--force", action="store_true", help="replace an existing --out")
+
     calib = sub.add_parser("calibrate", help="fit range = a * px^b from poles of known distance")
     _add_dataset_argument(calib, "dataset whose annotations.json (or --truth CSV) gives each pole's true range")
     calib.add_argument("--out", type=Path, required=True, help="calibration.json to write")
@@ -578,6 +585,15 @@ def _export(args: argparse.Namespace) -> int:
     return 0
 
 
+def _soup(args: argparse.Namespace) -> int:
+    from detector.soup import blend_checkpoints
+
+    first, second = args.weights
+    out = blend_checkpoints(first, second, args.alpha, args.out, args.force)
+    print(f"wrote {out}: (1 - {args.alpha:g}) * {first} + {args.alpha:g} * {second}")
+    return 0
+
+
 def _calibrate(args: argparse.Namespace) -> int:
     from calibration.run import print_calibration, run_calibration
 
@@ -647,7 +663,7 @@ def _demo(args: argparse.Namespace) -> int:
 
 
 COMMANDS = {"synth": _synth, "check": _check, "convert": _convert, "augment": _augment, "split": _split,
-            "train": _train, "export": _export, "calibrate": _calibrate, "evaluate": _evaluate,
+            "train": _train, "export": _export, "soup": _soup, "calibrate": _calibrate, "evaluate": _evaluate,
             "slam": _slam, "predict": _predict, "demo": _demo}
 
 if __name__ == "__main__":
