@@ -160,7 +160,7 @@ class LandmarkDetector:
     pole codes); a model trained on other names is refused. Pass ``classes=None`` to accept any model.
     ``input_width`` runs a model exported with ``--dynamic`` (the shipped ones are) at a smaller scale than it was
     exported at, its height in proportion: fewer pixels for a slower CPU, and poles under about 16 px wide lost
-    (README, "Engines and the on-robot budget"). None keeps the model's own input size. ``threads`` None runs one
+    (docs/camera-pose.md, "Engines and the on-robot budget"). None keeps the model's own input size. ``threads`` None runs one
     inference thread per core; ``iou`` is the NMS overlap (0-1] above which the lower-scored box of a class is dropped.
     """
 

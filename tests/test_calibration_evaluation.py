@@ -114,7 +114,7 @@ def test_noise_data_without_true_ranges_is_refused_before_anything_is_measured(c
 
 
 def test_the_minimal_annotations_json_a_team_writes_gives_the_same_sizes_and_ranges(synth_dataset, dataset_copy):
-    """README, "Range calibration": each image's landmarks as {cls, range_m}, in its label file's order, and the
+    """docs/range-calibration.md: each image's landmarks as {cls, range_m}, in its label file's order, and the
     camera's pose, which takes the sizes to a level camera's."""
     full = json.loads((synth_dataset / "annotations.json").read_text())["images"]
     minimal = {"images": {name: {"landmarks": [{"cls": lm["cls"], "range_m": lm["range_m"]}
