@@ -114,15 +114,16 @@ def sim_sequence(config: SimConfig, front_end: FrontEnd | None = None, progress:
 
 def image_sequences(config: SimConfig, front_ends: list[FrontEnd], progress: bool = True,
                     camera_pose: bool = True) -> list[Sequence]:
-    """One walk, its frames rendered once, seen through each front end in turn."""
+    """One walk, its frames rendered once, seen through each front end in turn. The front ends are opened first, so
+    an unreadable model or a missing calibration is refused before a minute of rendering."""
     from detector.synth.walk import render_walk, walk_camera_poses
 
+    measurers = [front_end.measurer() for front_end in front_ends]
     walk = simulate(config)
     frames = render_walk(walk, seed=config.seed, progress=progress)
     poses = walk_camera_poses(walk, config.seed) if camera_pose else [None] * len(frames)
     sequences = []
-    for front_end in front_ends:
-        measure = front_end.measurer()
+    for front_end, measure in zip(front_ends, measurers):
         sequence = walk_sequence(walk, [measure(frame, pose) for frame, pose in zip(frames, poses)])
         sequence.name = f"{config.label}, images through {Path(front_end.model).name}"
         sequences.append(sequence)

@@ -133,8 +133,18 @@ def test_check_summarises_many_problems_and_writes_the_whole_list(dataset_copy, 
     printed = capsys.readouterr().out
     listing = tmp_path / f"check-{dataset_copy.name}.txt"
     assert listing.is_file() and len(listing.read_text().splitlines()) >= 48
-    assert "24 x error: class id 9 out of range" in printed.replace("\n", " ") or "x error" in printed
+    assert "24 x error: class id 9 out of range" in " ".join(printed.split())
     assert len(printed.splitlines()) < 40
+
+
+def test_check_names_each_example_whose_particulars_differ_from_the_headline(dataset_copy, capsys):
+    labels = sorted(dataset_copy.rglob("labels/*.txt"))
+    labels[0].write_text("7 0.1 0.1 0.2 0.1 0.2 0.5\n")
+    labels[1].write_text("9 0.1 0.1 0.2 0.1 0.2 0.5\n")
+    assert main(["check", str(dataset_copy)]) == 1
+    printed = " ".join(capsys.readouterr().out.split())
+    assert "2 x error: class id" in printed
+    assert "class id 7 out of range" in printed and "class id 9 out of range" in printed
 
 
 @pytest.mark.parametrize("run_from", ["inside the dataset", "a refused --fix copy"])

@@ -50,6 +50,18 @@ def test_slam_command_refuses_bad_settings(argv, message, tmp_path, capsys):
     assert message in capsys.readouterr().err
 
 
+def test_an_unreadable_model_is_refused_before_the_walk_is_rendered(tmp_path, capsys, monkeypatch):
+    def no_rendering(*args, **kwargs):
+        raise AssertionError("the walk was rendered before the model was opened")
+
+    monkeypatch.setattr("detector.synth.walk.render_walk", no_rendering)
+    model = tmp_path / "bad.onnx"
+    model.write_text("not a model")
+    assert main(["slam", "--sim", "square", "--frontend", str(model), "--out", str(tmp_path / "o")]) == 2
+    assert "not a readable ONNX model" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
 def test_a_slower_frame_rate_hands_the_filter_fewer_sightings_of_the_same_walk(tmp_path):
     counts, odometry = {}, {}
     for rate in ("5", "1.25"):

@@ -100,7 +100,9 @@ def print_report(report: CheckReport, console: Console | None = None, show_notes
         console.print(f"[{style}]{len(problems)} x {severity}: {problems[0].message} - fix: {problems[0].fix}[/{style}]",
                       highlight=False, soft_wrap=True)
         for problem in problems[:EXAMPLES_PER_KIND]:
-            console.print(f"    {problem.path}" + (f":{problem.line}" if problem.line else ""), highlight=False)
+            where = f"{problem.path}" + (f":{problem.line}" if problem.line else "")
+            particulars = f"  ({problem.message})" if problem.message != problems[0].message else ""
+            console.print(f"    {where}{particulars}", highlight=False, soft_wrap=True)
         left_out += max(0, len(problems) - EXAMPLES_PER_KIND)
     counts = Counter(p.severity for p in report.problems)
     notes = len(report.problems) - len(shown)
