@@ -17,7 +17,8 @@ from detector.datasets.model import Instance, Sample
 from detector.parallel import default_workers, ordered_map
 from detector.preview import contact_sheet, draw_instances
 
-PREVIEW_ORIGINALS = 4
+#: Originals shown in ``augment_preview.png``, each beside at most ``PREVIEW_COPIES`` of its copies.
+PREVIEW_ORIGINALS, PREVIEW_COPIES = 4, 3
 
 
 @dataclass(frozen=True)
@@ -63,7 +64,7 @@ def augment_dataset(data: str | Path, out: str | Path, *, copies: int = 7, seed:
         raise ValueError(f"{dataset.root}: the train split is empty: nothing to augment")
     summary = {"copies": copies, "seed": seed, "config": config.as_dict(), "train_images_in": len(train),
                "instances_into_copies": 0, "instances_kept": 0, "instances_dropped": 0, "operations": Counter()}
-    tiles = []
+    tiles, preview_columns = [], 1 + min(copies, PREVIEW_COPIES)
     tasks = (_Task(sample, index, copies, seed, config) for index, sample in enumerate(train))
     with DatasetWriter(out, force=force, protect=dataset.input_folders()) as writer:
         for sample in dataset.samples:
@@ -78,8 +79,8 @@ def augment_dataset(data: str | Path, out: str | Path, *, copies: int = 7, seed:
                 summary["instances_kept"] += len(copy.instances)
                 summary["instances_dropped"] += copy.dropped
                 summary["operations"].update(copy.operations)
-            if preview and len(tiles) < PREVIEW_ORIGINALS * 4 and sample.instances:
-                tiles += _preview_row(sample, made)
+            if preview and len(tiles) < PREVIEW_ORIGINALS * preview_columns and sample.instances:
+                tiles += _preview_row(sample, made, preview_columns)
         truth = dataset.root / "annotations.json"  # per-image truth of the originals (copies have none)
         if truth.is_file():
             writer.write_text(truth.name, truth.read_text(encoding="utf-8"))
@@ -87,14 +88,16 @@ def augment_dataset(data: str | Path, out: str | Path, *, copies: int = 7, seed:
         summary["operations"] = dict(summary["operations"])
         writer.write_json("augment.json", summary)
     if preview and tiles:
-        summary["preview"] = str(contact_sheet(tiles, writer.out / "augment_preview.png"))
+        summary["preview"] = str(contact_sheet(tiles, writer.out / "augment_preview.png", columns=preview_columns))
     return summary
 
 
-def _preview_row(sample: Sample, made: list[_Copy]) -> list[tuple[np.ndarray, str]]:
+def _preview_row(sample: Sample, made: list[_Copy], columns: int) -> list[tuple[np.ndarray, str]]:
+    """The original and its first ``columns - 1`` copies, outlines drawn, each captioned with its operations; blank
+    tiles where an image made fewer copies (all of its poles clipped away)."""
     original = cv2.imread(str(sample.image), cv2.IMREAD_COLOR)
     row = [(draw_instances(original, sample.instances), f"original {sample.stem}")]
-    for copy in made[:3]:
+    for copy in made[:columns - 1]:
         image = cv2.imdecode(np.frombuffer(copy.jpeg, np.uint8), cv2.IMREAD_COLOR)
-        row.append((draw_instances(image, copy.instances), "+".join(copy.operations)))
-    return row + [(np.zeros_like(original), "")] * (4 - len(row))
+        row.append((draw_instances(image, copy.instances), " + ".join(copy.operations)))
+    return row + [(np.zeros_like(original), "")] * (columns - len(row))

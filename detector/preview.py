@@ -1,6 +1,7 @@
 """Contact sheets: a grid of images with their instance outlines and class names drawn, for a person to look at."""
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import cv2
@@ -28,16 +29,38 @@ def draw_instances(image_bgr: np.ndarray, instances: list[Instance]) -> np.ndarr
     return out
 
 
+#: Caption text: OpenCV's built-in Hershey font (nothing to download), its scale and line height in pixels.
+CAPTION_FONT, CAPTION_SCALE, CAPTION_LINE_PX = cv2.FONT_HERSHEY_SIMPLEX, 0.4, 13
+
+
+def wrap_caption(caption: str, width_px: int) -> list[str]:
+    """The caption broken after spaces and '+' into lines no wider than ``width_px`` (a word wider than that keeps
+    a line of its own)."""
+    lines = [""]
+    for piece in re.findall(r"[^ +]+[ +]*|[ +]+", caption):
+        trial = lines[-1] + piece
+        if lines[-1] and cv2.getTextSize(trial.rstrip(), CAPTION_FONT, CAPTION_SCALE, 1)[0][0] > width_px:
+            lines.append(piece)
+        else:
+            lines[-1] = trial
+    return [line.rstrip() for line in lines if line.strip()]
+
+
 def contact_sheet(tiles: list[tuple[np.ndarray, str]], path: str | Path, columns: int = 4, tile_width: int = 320) -> Path:
-    """Write a PNG grid of (BGR image, caption) tiles, each scaled to ``tile_width``; returns the path."""
+    """Write a PNG grid of (BGR image, caption) tiles, each scaled to ``tile_width`` under its caption (wrapped to
+    the tile's width, never cut); returns the path."""
     if not tiles:
         raise ValueError("no images for the contact sheet")
+    captions = [wrap_caption(caption, tile_width - 8) for _, caption in tiles]
+    header_h = 4 + CAPTION_LINE_PX * max(1, *map(len, captions))
     scaled = []
-    for image, caption in tiles:
+    for (image, _), lines in zip(tiles, captions):
         tile = cv2.resize(image, (tile_width, round(image.shape[0] * tile_width / image.shape[1])), interpolation=cv2.INTER_AREA)
-        cv2.rectangle(tile, (0, 0), (tile_width, 16), (0, 0, 0), -1)
-        cv2.putText(tile, caption[:48], (4, 12), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (255, 255, 255), 1, cv2.LINE_AA)
-        scaled.append(tile)
+        header = np.zeros((header_h, tile_width, 3), np.uint8)
+        for number, line in enumerate(lines, start=1):
+            cv2.putText(header, line, (4, CAPTION_LINE_PX * number - 1), CAPTION_FONT, CAPTION_SCALE, (255, 255, 255),
+                        1, cv2.LINE_AA)
+        scaled.append(np.vstack([header, tile]))
     tile_h = max(t.shape[0] for t in scaled)
     blank = np.zeros((tile_h, tile_width, 3), np.uint8)
     scaled = [cv2.copyMakeBorder(t, 0, tile_h - t.shape[0], 0, 0, cv2.BORDER_CONSTANT) for t in scaled]

@@ -16,6 +16,7 @@ from detector.cli import main
 from detector.datasets import Instance, load_dataset
 from detector.datasets.polygons import clip_polygon, mask_to_polygon, polygon_area, polygon_to_mask
 from detector.datasets.split import split_dataset
+from detector.preview import CAPTION_FONT, CAPTION_SCALE, wrap_caption
 from detector.synth.objects import pole
 from detector.synth.render import render_scene
 from detector.synth.scene import calibration_scene
@@ -139,8 +140,26 @@ def test_dataset_counts_untouched_splits_and_input(synth_dataset, tmp_path):
     for split in ("valid", "test"):
         assert _tree_digest(tmp_path / "aug", split) == _tree_digest(synth_dataset, split)
     assert summary["instances_kept"] + summary["instances_dropped"] == summary["instances_into_copies"]
-    assert (tmp_path / "aug" / "augment_preview.png").is_file()
+    preview = cv2.imread(str(tmp_path / "aug" / "augment_preview.png"))
+    assert preview.shape[1] == 4 * 320  # each original beside its three copies
     assert augmented.errors == []
+
+
+@pytest.mark.parametrize("copies, columns", [(1, 2), (2, 3), (9, 4)])
+def test_the_preview_shows_each_original_beside_as_many_copies_as_were_made_up_to_three(copies, columns,
+                                                                                        synth_dataset, tmp_path):
+    augment_dataset(synth_dataset, tmp_path / "aug", copies=copies, seed=1, workers=1, progress=False, preview=True)
+    assert cv2.imread(str(tmp_path / "aug" / "augment_preview.png")).shape[1] == columns * 320
+
+
+@pytest.mark.parametrize("width", [60, 150, 312])
+def test_a_caption_is_wrapped_to_the_tile_never_cut(width):
+    caption = " + ".join(OPERATIONS)
+    lines = wrap_caption(caption, width)
+    assert " ".join(lines).replace(" ", "") == caption.replace(" ", "")
+    fits = [cv2.getTextSize(line, CAPTION_FONT, CAPTION_SCALE, 1)[0][0] <= width for line in lines]
+    assert all(fit or " " not in line.strip(" +") for fit, line in zip(fits, lines))  # only a lone word overhangs
+    assert len(lines) > 1
 
 
 def test_same_seed_same_output(synth_dataset, tmp_path):
