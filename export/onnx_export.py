@@ -44,9 +44,9 @@ def export_onnx(weights: Path, out: Path, input_hw: tuple[int, int] = NAO_INPUT_
         model = YOLO(str(copy))
         if model.task != "segment":
             raise ValueError(f"{weights}: a {model.task} model, not a segmentation model - train a *-seg model")
-        with _quiet_ultralytics():
+        with _quiet_ultralytics():  # nms=None: the raw outputs, decoded by naoslam (False warns of a missing head)
             exported = Path(model.export(format="onnx", imgsz=list(input_hw), simplify=True, dynamic=dynamic,
-                                         nms=False, device="cpu", verbose=False))
+                                         nms=None, device="cpu", verbose=False))
         names = model.names
         info = ModelInfo(tuple(names[i] for i in sorted(names)), tuple(input_hw), int(max(model.model.stride)),
                          _model_name(model), dict(extra or {}))

@@ -2,8 +2,9 @@
 from __future__ import annotations
 
 import json
-import shutil
 import math
+import re
+import shutil
 from dataclasses import replace
 
 import cv2
@@ -13,7 +14,7 @@ import pytest
 from calibration.fit import WALK_RELATIVE_STD, calibrate, fit_power_law
 from calibration.run import load_calibration
 from calibration.samples import measure_samples, open_ranged
-from detector.cli import main
+from detector.cli import FALLBACK_CONF, main
 from detector.datasets import load_dataset
 from detector.datasets.truth import load_truth
 from detector.evaluation.by_width import label_width_px, recall_by_width, width_bin_names
@@ -25,6 +26,7 @@ from detector.synth.render import render_scene
 from detector.synth.scene import calibration_scene
 from naoslam.camera import PinholeCamera
 from naoslam.colour_filter import ColourFilter
+from naoslam.detector import LandmarkDetector
 from naoslam.landmarks import CLASSES
 from naoslam.measurement import MeasurementModel, PowerLaw, RangeCalibration, on_axis_size
 
@@ -415,3 +417,11 @@ def test_evaluate_keeps_models_of_the_same_file_name_apart(synth_dataset, tiny_o
     folders = sorted(p.name for p in out.iterdir())
     assert folders == ["a_best.onnx", "b_best.onnx", "colour-filter", "colour-filter-2"]
     assert [json.loads((out / f / "metrics.json").read_text())["model"] for f in folders] == folders
+
+
+def test_evaluate_prints_each_models_own_threshold(synth_dataset, tiny_onnx, tmp_path, capsys):
+    """The table's title once gave the first model's threshold for every column; the shipped model counts at 0.65."""
+    assert main(["evaluate", str(synth_dataset), "--model", str(tiny_onnx), "--model", "shipped",
+                 "--out", str(tmp_path / "eval")]) == 0
+    row = next(line for line in capsys.readouterr().out.splitlines() if "threshold (the counts')" in line)
+    assert re.findall(r"\d\.\d\d", row) == [f"{FALLBACK_CONF:.2f}", f"{LandmarkDetector().stored_conf:.2f}"]

@@ -139,6 +139,7 @@ _WIDTH_ROWS = {f"  poles {name} wide": (lambda m, i=i: _width_recall(m, i)) for 
 #: Rows of the comparison table: label and how to show it from metrics.json.
 TABLE_ROWS = {
     "images": lambda m: str(m["images"]),
+    "threshold (the counts')": lambda m: f"{m['conf']:.2f}",
     "TP / FP / FN / TN": lambda m: f"{m['tp']} / {m['fp']} / {m['fn']} / {m['tn']}",
     "FP: class swaps / duplicates": lambda m: f"{m['class_swaps']} / {m['duplicates']}",
     "precision": lambda m: f"{100 * m['precision']:.1f} %",
@@ -159,7 +160,7 @@ def print_metrics(rows: list[dict]) -> None:
     from detector.console import make_console
     from rich.table import Table
 
-    table = Table(title=f"held-out frames, conf {rows[0]['conf']}: TP = same class and mask IoU >= 0.5")
+    table = Table(title="held-out frames: TP = same class and mask IoU >= 0.5")
     table.add_column("")
     for m in rows:
         table.add_column(m["model"], justify="right")
