@@ -425,3 +425,10 @@ def test_evaluate_prints_each_models_own_threshold(synth_dataset, tiny_onnx, tmp
                  "--out", str(tmp_path / "eval")]) == 0
     row = next(line for line in capsys.readouterr().out.splitlines() if "threshold (the counts')" in line)
     assert re.findall(r"\d\.\d\d", row) == [f"{FALLBACK_CONF:.2f}", f"{LandmarkDetector().stored_conf:.2f}"]
+
+
+def test_a_front_end_without_scores_has_no_best_threshold(synth_dataset, tmp_path, capsys):
+    """Every colour-filter detection has confidence 1, so every threshold counts the same: none is "best"."""
+    assert main(["evaluate", str(synth_dataset), "--model", "colour-filter", "--out", str(tmp_path / "eval")]) == 0
+    row = next(line for line in capsys.readouterr().out.splitlines() if "best-F1 threshold" in line)
+    assert re.search(r"any \(\d\.\d{3}\)", row)

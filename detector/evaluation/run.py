@@ -151,8 +151,16 @@ TABLE_ROWS = {
                                            if "range_error" in m else "-"),
     "bearing error median / p90": lambda m: (f"{m['bearing_error']['median']:.2f} / {m['bearing_error']['p90']:.2f} deg"
                                              if "bearing_error" in m else "-"),
-    "best-F1 threshold (F1)": lambda m: f"{m['best_f1_conf']:.2f} ({m['best_f1']:.3f})",
+    "best-F1 threshold (F1)": lambda m: f"{_best_threshold(m)} ({m['best_f1']:.3f})",
 }
+
+
+def _best_threshold(m: dict) -> str:
+    """The best-F1 threshold, or "any" when every threshold of the sweep scores the same (a front end whose
+    detections all have one confidence, as the colour filter's do)."""
+    flat = len({round(row["f1"], 9) for row in m["sweep"]}) == 1
+    return "any" if flat else f"{m['best_f1_conf']:.2f}"
+
 
 
 def print_metrics(rows: list[dict]) -> None:
