@@ -31,6 +31,8 @@ PRELABEL_EPSILON_PX = 1.0
 FOLDER_FPS = 15.0
 #: Tiles in the contact sheet beside a video.
 SHEET_TILES = 12
+#: The sheet's grid: tiles wide enough that the drawn labels stay readable.
+SHEET_COLUMNS, SHEET_TILE_WIDTH = 3, 640
 
 
 def frames_in(source: Path, subfolders: bool = False) \
@@ -191,7 +193,7 @@ def overlay_video(source: Path, out: Path, model: Path | None = None, conf: floa
         if writer is not None:
             writer.release()
         tmp.unlink(missing_ok=True)
-    sheet = contact_sheet(tiles, out.with_suffix(".png"))
+    sheet = contact_sheet(tiles, out.with_suffix(".png"), columns=SHEET_COLUMNS, tile_width=SHEET_TILE_WIDTH)
     return {"frames": written, "fps": fps, "video": str(out), "sheet": str(sheet), "conf": detector.conf,
             "ranges": measurer is not None}
 
@@ -209,6 +211,7 @@ def draw_detections(frame: np.ndarray, detections: list[Detection], measurer: Me
         text = f"{d.name} {d.confidence:.2f}"
         for m in measurer.measure([d], w) if measurer else []:
             text += f" {m.range_m:.2f} m {np.degrees(m.bearing_rad):+.1f} deg"
-        cv2.putText(out, text, (x0, max(y0 - 5, 12)), cv2.FONT_HERSHEY_SIMPLEX, scale, colour.tolist(),
-                    max(1, round(2 * scale)), cv2.LINE_AA)
+        thickness, origin = max(1, round(2 * scale)), (x0, max(y0 - 5, 12))
+        for ink, width in (((0, 0, 0), thickness + 2), (colour.tolist(), thickness)):  # a dark edge reads on any floor
+            cv2.putText(out, text, origin, cv2.FONT_HERSHEY_SIMPLEX, scale, ink, width, cv2.LINE_AA)
     return out
