@@ -14,6 +14,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from detector.console import show_progress
 from detector.datasets.io import csv_rows, require_decodable
 from detector.datasets.names import canonical_class
 from naoslam.atomic import atomic_path, write_json
@@ -124,7 +125,9 @@ def image_sequences(config: SimConfig, front_ends: list[FrontEnd], progress: boo
     poses = walk_camera_poses(walk, config.seed) if camera_pose else [None] * len(frames)
     sequences = []
     for front_end, measure in zip(front_ends, measurers):
-        sequence = walk_sequence(walk, [measure(frame, pose) for frame, pose in zip(frames, poses)])
+        seen = show_progress(zip(frames, poses), f"through {Path(front_end.model).name}", "frame", total=len(frames),
+                             enabled=progress)
+        sequence = walk_sequence(walk, [measure(frame, pose) for frame, pose in seen])
         sequence.name = f"{config.label}, images through {Path(front_end.model).name}"
         sequences.append(sequence)
     return sequences
@@ -139,7 +142,7 @@ POSE_COLUMNS = ("camera_height", "camera_pitch", "camera_roll")
 
 
 def recorded_sequence(frames_dir: Path, odometry_csv: Path, front_end: FrontEnd, time_offset_s: float,
-                      camera_pose: bool = True) -> Sequence:
+                      camera_pose: bool = True, progress: bool = True) -> Sequence:
     """Frames named by their time stamp (``12.533.jpg``) and an odometry CSV ``t,x,y,theta``, merged in time.
 
     When the CSV also has ``camera_height,camera_pitch,camera_roll`` (and ``camera_pose``), each frame is measured
@@ -169,7 +172,7 @@ def recorded_sequence(frames_dir: Path, odometry_csv: Path, front_end: FrontEnd,
     require_decodable([path for _, path in stamped])
     measure = front_end.measurer()
     frames = []
-    for t, path in sorted(stamped):
+    for t, path in show_progress(sorted(stamped), f"through {Path(front_end.model).name}", "frame", enabled=progress):
         image = cv2.imread(str(path))
         pose = poses[int(np.argmin(np.abs(times - t - time_offset_s)))] if poses and camera_pose else None
         frames.append(Event(t, measurements=measure(image, pose)))
