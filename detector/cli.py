@@ -20,6 +20,9 @@ STRENGTH_FLAGS = {"rotate_deg": "whole-image rotation limit", "shear_deg": "shea
                   "box_rotate_deg": "box rotation limit", "box_brightness": "box brightness change limit (fraction)",
                   "box_blur_px": "box blur sigma limit (px)"}
 
+#: ``poles evaluate``'s threshold for a model that stores none.
+FALLBACK_CONF = 0.5
+
 
 def _size(text: str) -> tuple[int, int]:
     try:
@@ -385,79 +388,6 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _slam(args: argparse.Namespace) -> int:
-    from dataclasses import replace
-
-    import numpy as np
-
-    from calibration.run import load_calibration
-    from detector.datasets.io import output_folder
-    from detector.slam_reference import smooth
-    from detector.slam_run import (BACKENDS, FrontEnd, compare_backends, print_comparison, read_pole_map,
-                                   recorded_sequence, sim_sequence, utias_sequence, write_outputs)
-    from naoslam.atomic import write_json
-    from naoslam.ekf_slam import SlamConfig
-    from naoslam.runner import LocalisationConfig, run_slam
-
-    calibration = load_calibration(args.calibration) if args.calibration else None
-    frontend = args.frontend or ("shipped" if args.frames else None)
-    if args.imgsz is not None and frontend in (None, "colour-filter"):
-        raise ValueError("--imgsz is a model's input width: give --frontend model.onnx or shipped")
-    front_end = FrontEnd(frontend, calibration, args.conf, args.imgsz) if frontend else None
-    if args.sim:
-        def make(seed: int):
-            sim = SimConfig(path=args.sim, duration_s=args.duration or 90.0, seed=seed,
-                            false_positive_rate=args.false_positive_rate, confusion_rate=args.confusion_rate,
-                            lookalikes=args.lookalikes, stride_scale=args.odometry_bias,
-                            front_end_hz=args.frame_rate)
-            return sim_sequence(sim, front_end, camera_pose=not args.no_camera_pose)
-    elif args.utias:
-        def make(seed: int):
-            return utias_sequence(args.utias, args.duration)
-    else:
-        if not args.odometry:
-            raise ValueError("--frames needs --odometry: a CSV t,x,y,theta of the same recording")
-
-        def make(seed: int):
-            return recorded_sequence(args.frames, args.odometry, front_end, args.time_offset,
-                                     camera_pose=not args.no_camera_pose)
-    gate = None if args.no_gate else args.gate
-    if args.map:
-        if args.map == "true" and not args.sim:
-            raise ValueError("--map true is a simulated walk's own map: give --sim, or a CSV class,x,y of where your "
-                             "poles stand")
-        config = LocalisationConfig(information_form=args.eif, self_calibrate=not args.no_self_calibration,
-                                    gate=gate, landmarks=None if args.map == "true" else read_pole_map(args.map))
-    elif args.eif:
-        raise ValueError("--eif is a localiser: give --map with where the poles stand")
-    else:
-        association = args.association or ("class" if args.utias else "nearest")
-        config = SlamConfig(linearisation={"ekf": "standard"}.get(args.backend, args.backend),
-                            outlier_filter=args.outlier_filter, gate=gate, min_views=args.min_views,
-                            min_separation_m=args.min_separation, association=association,
-                            self_calibrate=not args.no_self_calibration)
-    map_file = Path(args.map) if args.map and args.map != "true" else None
-    inputs = (args.utias, args.frames, args.odometry, args.calibration, Path(frontend) if frontend else None, map_file)
-    start_std = (args.start_std[0], args.start_std[0], args.start_std[1])
-    with output_folder(args.out, args.force, _existing(*inputs)) as out:
-        sequence = make(args.seed)
-        if args.start is not None:
-            sequence = replace(sequence, start=np.array(args.start))
-        metrics = write_outputs(run_slam(sequence, config, start_std), sequence, out)
-        rows = None
-        if args.compare:
-            seeds = list(range(args.seed, args.seed + (args.compare if args.sim else 1)))
-            reference = smooth if args.sim and not front_end else None
-            rows = compare_backends(lambda s: sequence if s == args.seed else make(s), seeds, BACKENDS, reference)
-            write_json(out / "comparison.json", rows)
-    summary = ", ".join(f"{key} mean {metrics[key]['mean']:.3f} m" for key in
-                        ("robot_error", "landmark_error", "odometry_error") if key in metrics)
-    print(f"{config.label} on {sequence.name}: {summary}; wrote {args.out}")
-    if rows is not None:
-        print_comparison(rows, f"back ends on {sequence.name} ({len(seeds)} seed(s))")
-    return 0
-
-
 def main(argv: list[str] | None = None) -> int:
     """Run one ``poles`` command; bad input ends in one line on stderr and exit code 2, never a traceback."""
     args = build_parser().parse_args(argv)
@@ -626,6 +556,15 @@ def _evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _column_labels(models: list[str], names: list[str]) -> list[str]:
+    """Each evaluated model's table column and folder: its file name, or, where two share one, ``FOLDER_NAME``
+    (``runs/a/best.onnx`` -> ``a_best.onnx``), numbered where that is shared too; two models never share a folder."""
+    labels = [name if names.count(name) == 1 or not Path(model).parent.name else f"{Path(model).parent.name}_{name}"
+              for model, name in zip(models, names)]
+    return [label if labels[:index].count(label) == 0 else f"{label}-{labels[:index].count(label) + 1}"
+            for index, label in enumerate(labels)]
+
+
 def _predict(args: argparse.Namespace) -> int:
     from detector.prediction import overlay_video, prelabel
 
@@ -642,17 +581,77 @@ def _predict(args: argparse.Namespace) -> int:
     return 0
 
 
-def _column_labels(models: list[str], names: list[str]) -> list[str]:
-    """Each evaluated model's table column and folder: its file name, or, where two share one, ``FOLDER_NAME``
-    (``runs/a/best.onnx`` -> ``a_best.onnx``), numbered where that is shared too; two models never share a folder."""
-    labels = [name if names.count(name) == 1 or not Path(model).parent.name else f"{Path(model).parent.name}_{name}"
-              for model, name in zip(models, names)]
-    return [label if labels[:index].count(label) == 0 else f"{label}-{labels[:index].count(label) + 1}"
-            for index, label in enumerate(labels)]
+def _slam(args: argparse.Namespace) -> int:
+    from dataclasses import replace
 
+    import numpy as np
 
-#: ``poles evaluate``'s threshold for a model that stores none.
-FALLBACK_CONF = 0.5
+    from calibration.run import load_calibration
+    from detector.datasets.io import output_folder
+    from detector.slam_reference import smooth
+    from detector.slam_run import (BACKENDS, FrontEnd, compare_backends, print_comparison, read_pole_map,
+                                   recorded_sequence, sim_sequence, utias_sequence, write_outputs)
+    from naoslam.atomic import write_json
+    from naoslam.ekf_slam import SlamConfig
+    from naoslam.runner import LocalisationConfig, run_slam
+
+    calibration = load_calibration(args.calibration) if args.calibration else None
+    frontend = args.frontend or ("shipped" if args.frames else None)
+    if args.imgsz is not None and frontend in (None, "colour-filter"):
+        raise ValueError("--imgsz is a model's input width: give --frontend model.onnx or shipped")
+    front_end = FrontEnd(frontend, calibration, args.conf, args.imgsz) if frontend else None
+    if args.sim:
+        def make(seed: int):
+            sim = SimConfig(path=args.sim, duration_s=args.duration or 90.0, seed=seed,
+                            false_positive_rate=args.false_positive_rate, confusion_rate=args.confusion_rate,
+                            lookalikes=args.lookalikes, stride_scale=args.odometry_bias,
+                            front_end_hz=args.frame_rate)
+            return sim_sequence(sim, front_end, camera_pose=not args.no_camera_pose)
+    elif args.utias:
+        def make(seed: int):
+            return utias_sequence(args.utias, args.duration)
+    else:
+        if not args.odometry:
+            raise ValueError("--frames needs --odometry: a CSV t,x,y,theta of the same recording")
+
+        def make(seed: int):
+            return recorded_sequence(args.frames, args.odometry, front_end, args.time_offset,
+                                     camera_pose=not args.no_camera_pose)
+    gate = None if args.no_gate else args.gate
+    if args.map:
+        if args.map == "true" and not args.sim:
+            raise ValueError("--map true is a simulated walk's own map: give --sim, or a CSV class,x,y of where your "
+                             "poles stand")
+        config = LocalisationConfig(information_form=args.eif, self_calibrate=not args.no_self_calibration,
+                                    gate=gate, landmarks=None if args.map == "true" else read_pole_map(args.map))
+    elif args.eif:
+        raise ValueError("--eif is a localiser: give --map with where the poles stand")
+    else:
+        association = args.association or ("class" if args.utias else "nearest")
+        config = SlamConfig(linearisation={"ekf": "standard"}.get(args.backend, args.backend),
+                            outlier_filter=args.outlier_filter, gate=gate, min_views=args.min_views,
+                            min_separation_m=args.min_separation, association=association,
+                            self_calibrate=not args.no_self_calibration)
+    map_file = Path(args.map) if args.map and args.map != "true" else None
+    inputs = (args.utias, args.frames, args.odometry, args.calibration, Path(frontend) if frontend else None, map_file)
+    start_std = (args.start_std[0], args.start_std[0], args.start_std[1])
+    with output_folder(args.out, args.force, _existing(*inputs)) as out:
+        sequence = make(args.seed)
+        if args.start is not None:
+            sequence = replace(sequence, start=np.array(args.start))
+        metrics = write_outputs(run_slam(sequence, config, start_std), sequence, out)
+        rows = None
+        if args.compare:
+            seeds = list(range(args.seed, args.seed + (args.compare if args.sim else 1)))
+            reference = smooth if args.sim and not front_end else None
+            rows = compare_backends(lambda s: sequence if s == args.seed else make(s), seeds, BACKENDS, reference)
+            write_json(out / "comparison.json", rows)
+    summary = ", ".join(f"{key} mean {metrics[key]['mean']:.3f} m" for key in
+                        ("robot_error", "landmark_error", "odometry_error") if key in metrics)
+    print(f"{config.label} on {sequence.name}: {summary}; wrote {args.out}")
+    if rows is not None:
+        print_comparison(rows, f"back ends on {sequence.name} ({len(seeds)} seed(s))")
+    return 0
 
 
 def _demo(args: argparse.Namespace) -> int:
