@@ -588,9 +588,10 @@ def _slam(args: argparse.Namespace) -> int:
 
     from calibration.run import load_calibration
     from detector.datasets.io import output_folder
-    from detector.slam_reference import smooth
-    from detector.slam_run import (BACKENDS, FrontEnd, compare_backends, print_comparison, read_pole_map,
-                                   recorded_sequence, sim_sequence, utias_sequence, write_outputs)
+    from detector.slam.comparison import BACKENDS, compare_backends, print_comparison
+    from detector.slam.outputs import write_outputs
+    from detector.slam.reference import smooth
+    from detector.slam.sequences import FrontEnd, read_pole_map, recorded_sequence, sim_sequence, utias_sequence
     from naoslam.atomic import write_json
     from naoslam.ekf_slam import SlamConfig
     from naoslam.runner import LocalisationConfig, run_slam

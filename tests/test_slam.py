@@ -243,7 +243,7 @@ def test_a_swapped_class_corrects_the_pose_only_where_one_landmark_explains_it(f
 def test_localisation_rows_run_only_where_the_start_is_a_true_pose_on_a_known_map():
     """A simulated walk starts at its true pose on its true map; a log whose start is its own origin (UTIAS without
     robot truth) or a recording without a map cannot be localised, and the comparison leaves those rows out."""
-    from detector.slam_run import BACKENDS, compare_backends
+    from detector.slam.comparison import BACKENDS, compare_backends
     from naoslam.runner import LocalisationConfig, localisable
 
     walk = walk_sequence(simulate(SimConfig(duration_s=10, seed=1)))

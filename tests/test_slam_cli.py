@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from detector.cli import main
-from detector.slam_run import BACKENDS, REFERENCE_ROW, FrontEnd, recorded_sequence
+from detector.slam.comparison import BACKENDS, REFERENCE_ROW
+from detector.slam.sequences import FrontEnd, recorded_sequence
 from naoslam.landmarks import CLASSES
 from naoslam.measurement import PowerLaw, RangeCalibration
 from naoslam.runner import run_slam

@@ -158,7 +158,7 @@ def test_the_simulator_tags_lookalikes_and_confusions_and_reports_noise_from_the
 
 def test_the_smoother_reference_recovers_the_scales_and_beats_odometry():
     pytest.importorskip("gtsam")
-    from detector.slam_reference import smooth
+    from detector.slam.reference import smooth
 
     metrics = smooth(walk_sequence(simulate(SimConfig(seed=2, lookalikes=1, confusion_rate=0.1)))).metrics()
     assert metrics["odometry_scales"]["stride"] == pytest.approx(0.8, abs=0.03)

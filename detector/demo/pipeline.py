@@ -252,8 +252,9 @@ def operating_threshold(validation: dict, starting_conf: float | None) -> tuple[
 def _slam(folder: Path, model: Path, calibration_json: Path, budget: Budget, conf: float, seed: int) -> dict:
     from calibration.run import load_calibration
     from detector.datasets.io import output_folder
-    from detector.slam_run import (BACKENDS, FrontEnd, compare_backends, image_sequences, sim_sequence,
-                                   write_outputs)
+    from detector.slam.comparison import BACKENDS, compare_backends
+    from detector.slam.outputs import write_outputs
+    from detector.slam.sequences import FrontEnd, image_sequences, sim_sequence
     from naoslam.atomic import write_json
     from naoslam.ekf_slam import SlamConfig
     from naoslam.runner import run_slam

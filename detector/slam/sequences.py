@@ -1,13 +1,8 @@
-"""``poles slam``: build a sequence (simulated walk, UTIAS log, or recorded frames), run back ends, report.
-
-The runtime pieces are naoslam's; this module adds what the robot does not need: the image-level simulation
-(frames rendered along the walk), plots, and the comparison table over back ends and seeds.
-"""
+"""What the filters are given: a simulated walk (measurement level, or its frames rendered and seen through a front
+end), a UTIAS log or a recording (frames named by time stamp and an odometry CSV), and the map a localiser is told."""
 from __future__ import annotations
 
-import csv
 import math
-import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,37 +12,13 @@ import numpy as np
 from detector.console import show_progress
 from detector.datasets.io import csv_rows, require_decodable
 from detector.datasets.names import canonical_class
-from naoslam.atomic import atomic_path, write_json
 from naoslam.camera import CameraPose
-from naoslam.ekf_slam import SlamConfig
 from naoslam.landmarks import CLASSES
 from naoslam.logs import load_utias
 from naoslam.measurement import THESIS_CONF, Measurement, MeasurementModel, RangeCalibration
-from naoslam.metrics import chi2_band
-from naoslam.observation import CHI2_2DOF_99
-from naoslam.runner import (Event, LocalisationConfig, Sequence, SlamResult, localisable, merge_frames, run_slam,
-                            walk_sequence)
-from naoslam.sim import SimConfig, simulate
 from naoslam.motion import OdometryModel
-
-#: Back ends of the comparison table: the thesis's (tables 4.1 and 4.3, raw odometry and known correspondences),
-#: then the robust default and its parts switched off one at a time; last, localisation on the true map where the
-#: sequence has one (simulated walks), on the same data.
-BACKENDS = {
-    "EKF (thesis)": SlamConfig.thesis(),
-    "EKF + outlier filter (thesis)": SlamConfig.thesis(outlier_filter=True),
-    "EKF + min view 3 (thesis)": SlamConfig.thesis(min_views=3),
-    "FEJ-EKF (thesis)": SlamConfig.thesis(linearisation="fej"),
-    "FEJ-EKF + gate + min view 3": SlamConfig.thesis(linearisation="fej", gate=CHI2_2DOF_99, min_views=3),
-    "OC-EKF (thesis settings)": SlamConfig.thesis(linearisation="oc"),
-    "robust default": SlamConfig(),
-    "robust, standard linearisation": SlamConfig(linearisation="standard"),
-    "robust, no odometry scales": SlamConfig(self_calibrate=False),
-    "robust, known correspondences": SlamConfig(association="class"),
-    "EKF localisation, known map": LocalisationConfig(),
-    "EIF localisation, known map": LocalisationConfig(information_form=True),
-    "EKF localisation, known map, no odometry scales (thesis)": LocalisationConfig(self_calibrate=False),
-}
+from naoslam.runner import Event, Sequence, merge_frames, walk_sequence
+from naoslam.sim import SimConfig, simulate
 
 
 @dataclass(frozen=True)
@@ -242,131 +213,3 @@ def read_pole_map(path: Path) -> dict[str, tuple[float, float]]:
 
 def utias_sequence(folder: Path, duration_s: float | None = None) -> Sequence:
     return load_utias(folder, duration_s=duration_s)
-
-
-def write_outputs(result: SlamResult, sequence: Sequence, out: Path) -> dict:
-    """metrics.json, path.csv, map.json (the map estimated, or a localiser's given map) and the two plots in ``out``."""
-    out.mkdir(parents=True, exist_ok=True)
-    metrics = {"sequence": sequence.name, **result.metrics()}
-    write_json(out / "metrics.json", metrics)
-    write_json(out / "map.json", {k: [float(v[0]), float(v[1])] for k, v in result.landmarks.items()})
-    with atomic_path(out / "path.csv") as tmp:
-        with tmp.open("w", newline="") as handle:
-            writer = csv.writer(handle)
-            writer.writerow(["t", "x", "y", "theta"] + (["true_x", "true_y", "true_theta"]
-                                                        if result.true_poses is not None else []))
-            for i, t in enumerate(result.times):
-                extra = list(result.true_poses[i]) if result.true_poses is not None else []
-                writer.writerow([f"{t:.3f}", *(f"{v:.4f}" for v in result.poses[i]), *(f"{v:.4f}" for v in extra)])
-    plot_map(result, out / "map.png", sequence.name)
-    if result.true_poses is not None:
-        plot_errors(result, out / "errors.png")
-    return metrics
-
-
-def compare_backends(make_sequence, seeds: list[int], backends: dict[str, SlamConfig | LocalisationConfig] = BACKENDS,
-                     reference=None) -> list[dict]:
-    """Every back end on the same sequences (one per seed): mean errors, missing and phantom landmarks, NEES
-    against its 95 % band over the seeds, NIS. ``reference(sequence) -> SlamResult`` adds a last row."""
-    runs: dict[str, list[dict]] = {name: [] for name in backends}
-    if reference is not None:
-        runs[REFERENCE_ROW] = []
-    for seed in seeds:
-        sequence = make_sequence(seed)
-        for name, config in backends.items():
-            if isinstance(config, SlamConfig) or localisable(sequence):
-                runs[name].append(run_slam(sequence, config).metrics())
-        if reference is not None:
-            runs[REFERENCE_ROW].append(reference(sequence).metrics())
-    return [_summary(name, metrics) for name, metrics in runs.items() if metrics]
-
-
-REFERENCE_ROW = "GTSAM smoother, oracle association (reference)"
-
-
-def _summary(name: str, runs: list[dict]) -> dict:
-    row: dict = {"backend": name, "seeds": len(runs)}
-    for key in ("robot_error", "landmark_error", "odometry_error"):
-        values = [r[key]["mean"] for r in runs if key in r]
-        if values:
-            row[key] = float(np.mean(values))
-    row["missing"] = sum(len(r.get("landmarks_missing", [])) for r in runs)
-    row["phantoms"] = sum(len(r.get("phantoms", {})) for r in runs)
-    nees = [r["nees"]["mean"] for r in runs if "nees" in r]
-    if nees:
-        row["nees"] = float(np.median(nees))
-        row["nees_band95"] = chi2_band(3, len(nees))
-    nis = [r["nis"]["mean"] for r in runs if "nis" in r]
-    if nis:
-        row["nis"] = float(np.median(nis))
-    return row
-
-
-def print_comparison(rows: list[dict], title: str) -> None:
-    """Print one table row per back end: errors against the truth, missing and phantom landmarks, consistency."""
-    from detector.console import make_console
-    from rich.table import Table
-
-    table = Table(title=title)
-    for column in ("back end", "landmark mean (m)", "robot mean (m)", "odometry alone (m)", "missing", "phantoms",
-                   "NEES median (3 dof)", "NEES 95 % band", "NIS median (2 dof)"):
-        table.add_column(column, justify="right")
-    for row in rows:
-        band = row.get("nees_band95")
-        table.add_row(row["backend"], *(f"{row[k]:.3f}" if k in row else "-"
-                                        for k in ("landmark_error", "robot_error", "odometry_error")),
-                      str(row["missing"]), str(row["phantoms"]),
-                      f"{row['nees']:.1f}" if "nees" in row else "-",
-                      f"{band[0]:.2f}-{band[1]:.2f}" if band else "-",
-                      f"{row['nis']:.2f}" if "nis" in row else "-")
-    make_console().print(table)
-
-
-#: A map's title wraps at this many characters, so the back end's long label stays inside the 7-inch figure.
-MAP_TITLE_CHARS = 90
-
-
-def plot_map(result: SlamResult, png: Path, title: str) -> Path:
-    """True and estimated landmarks and paths (and odometry), like the thesis's map figures."""
-    from detector.figures import plt, save_figure
-
-    fig, ax = plt.subplots(figsize=(7, 5), constrained_layout=True)
-    if result.true_poses is not None:
-        ax.plot(result.true_poses[:, 0], result.true_poses[:, 1], color="black", linewidth=1, label="true path")
-    if result.odometry_poses is not None:
-        ax.plot(result.odometry_poses[:, 0], result.odometry_poses[:, 1], color="grey", linestyle=":",
-                label="odometry")
-    ax.plot(result.poses[:, 0], result.poses[:, 1], color="tab:blue", linewidth=1, label="estimated path")
-    truth = result.landmarks_truth
-    if truth:
-        ax.scatter(*np.array(list(truth.values())).T, marker="s", s=50, facecolors="none", edgecolors="black",
-                   label="true landmarks")
-    if result.landmarks:
-        estimated = np.array(list(result.landmarks.values()))
-        ax.scatter(*estimated.T, marker="x", s=50, color="tab:red",
-                   label="estimated landmarks" if result.mapped else "the map it localised on")
-        for name, (x, y) in result.landmarks.items():
-            ax.annotate(name, (x, y), textcoords="offset points", xytext=(4, 4), fontsize=7)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    ax.set_title(textwrap.fill(f"{result.label} - {title}", MAP_TITLE_CHARS), fontsize=9)
-    ax.legend(fontsize=7, loc="best")
-    ax.grid(alpha=0.3)
-    return save_figure(fig, png)
-
-
-def plot_errors(result: SlamResult, png: Path) -> Path:
-    """Robot position error over time for the filter and for odometry alone."""
-    from detector.figures import plt, save_figure
-
-    fig, ax = plt.subplots(figsize=(7, 3), constrained_layout=True)
-    ax.plot(result.times, np.linalg.norm(result.poses[:, :2] - result.true_poses[:, :2], axis=1), label=result.label)
-    if result.odometry_poses is not None:
-        ax.plot(result.times, np.linalg.norm(result.odometry_poses[:, :2] - result.true_poses[:, :2], axis=1),
-                color="grey", linestyle=":", label="odometry alone")
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("robot position error (m)")
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
-    return save_figure(fig, png)

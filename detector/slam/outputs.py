@@ -1,0 +1,82 @@
+"""What a ``poles slam`` run writes: metrics.json, map.json, path.csv, and the map and error plots."""
+from __future__ import annotations
+
+import csv
+import textwrap
+from pathlib import Path
+
+import numpy as np
+
+from naoslam.atomic import atomic_path, write_json
+from naoslam.runner import Sequence, SlamResult
+
+
+def write_outputs(result: SlamResult, sequence: Sequence, out: Path) -> dict:
+    """metrics.json, path.csv, map.json (the map estimated, or a localiser's given map) and the two plots in ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    metrics = {"sequence": sequence.name, **result.metrics()}
+    write_json(out / "metrics.json", metrics)
+    write_json(out / "map.json", {k: [float(v[0]), float(v[1])] for k, v in result.landmarks.items()})
+    with atomic_path(out / "path.csv") as tmp:
+        with tmp.open("w", newline="") as handle:
+            writer = csv.writer(handle)
+            writer.writerow(["t", "x", "y", "theta"] + (["true_x", "true_y", "true_theta"]
+                                                        if result.true_poses is not None else []))
+            for i, t in enumerate(result.times):
+                extra = list(result.true_poses[i]) if result.true_poses is not None else []
+                writer.writerow([f"{t:.3f}", *(f"{v:.4f}" for v in result.poses[i]), *(f"{v:.4f}" for v in extra)])
+    plot_map(result, out / "map.png", sequence.name)
+    if result.true_poses is not None:
+        plot_errors(result, out / "errors.png")
+    return metrics
+
+
+
+#: A map's title wraps at this many characters, so the back end's long label stays inside the 7-inch figure.
+MAP_TITLE_CHARS = 90
+
+
+def plot_map(result: SlamResult, png: Path, title: str) -> Path:
+    """True and estimated landmarks and paths (and odometry), like the thesis's map figures."""
+    from detector.figures import plt, save_figure
+
+    fig, ax = plt.subplots(figsize=(7, 5), constrained_layout=True)
+    if result.true_poses is not None:
+        ax.plot(result.true_poses[:, 0], result.true_poses[:, 1], color="black", linewidth=1, label="true path")
+    if result.odometry_poses is not None:
+        ax.plot(result.odometry_poses[:, 0], result.odometry_poses[:, 1], color="grey", linestyle=":",
+                label="odometry")
+    ax.plot(result.poses[:, 0], result.poses[:, 1], color="tab:blue", linewidth=1, label="estimated path")
+    truth = result.landmarks_truth
+    if truth:
+        ax.scatter(*np.array(list(truth.values())).T, marker="s", s=50, facecolors="none", edgecolors="black",
+                   label="true landmarks")
+    if result.landmarks:
+        estimated = np.array(list(result.landmarks.values()))
+        ax.scatter(*estimated.T, marker="x", s=50, color="tab:red",
+                   label="estimated landmarks" if result.mapped else "the map it localised on")
+        for name, (x, y) in result.landmarks.items():
+            ax.annotate(name, (x, y), textcoords="offset points", xytext=(4, 4), fontsize=7)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(textwrap.fill(f"{result.label} - {title}", MAP_TITLE_CHARS), fontsize=9)
+    ax.legend(fontsize=7, loc="best")
+    ax.grid(alpha=0.3)
+    return save_figure(fig, png)
+
+
+def plot_errors(result: SlamResult, png: Path) -> Path:
+    """Robot position error over time for the filter and for odometry alone."""
+    from detector.figures import plt, save_figure
+
+    fig, ax = plt.subplots(figsize=(7, 3), constrained_layout=True)
+    ax.plot(result.times, np.linalg.norm(result.poses[:, :2] - result.true_poses[:, :2], axis=1), label=result.label)
+    if result.odometry_poses is not None:
+        ax.plot(result.times, np.linalg.norm(result.odometry_poses[:, :2] - result.true_poses[:, :2], axis=1),
+                color="grey", linestyle=":", label="odometry alone")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("robot position error (m)")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    return save_figure(fig, png)
