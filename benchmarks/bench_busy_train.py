@@ -43,8 +43,8 @@ def one_run(variant: str, data: str, seconds: float) -> None:
     import torch
     from ultralytics import YOLO
 
-    from detector.cpu_threads import ThreadTuner
-    from detector.training import CpuSegmentationTrainer, use_all_cores
+    from detector.training.cpu_threads import ThreadTuner
+    from detector.training.train import CpuSegmentationTrainer, use_all_cores
 
     model = YOLO("yolov8n-seg.yaml")
     stamps: list[float] = []

@@ -24,7 +24,7 @@ def train_with_snapshots(data: Path, run: Path, weights: Path | None, minutes: l
     import torch
     from ultralytics import YOLO
 
-    from detector.training import CpuSegmentationTrainer, use_all_cores
+    from detector.training.train import CpuSegmentationTrainer, use_all_cores
 
     use_all_cores()
     model = YOLO(str(weights) if weights else "yolov8n-seg.yaml", task="segment")
@@ -49,7 +49,7 @@ def main(minutes: list[float]) -> None:
     from detector.evaluation.predictors import TorchPredictor
     from detector.evaluation.run import evaluate
     from detector.synth.generate import SynthJob, generate_dataset
-    from detector.starting_point import SHIPPED_WEIGHTS
+    from detector.training.starting_point import SHIPPED_WEIGHTS
 
     with tempfile.TemporaryDirectory() as tmp:
         data = generate_dataset(Path(tmp) / "user", SynthJob(200, seed=4242, width=1280, height=960, hfov_deg=60.97),

@@ -29,7 +29,7 @@ def build_onnx(model: str, folder: Path, images: list[Path]) -> Path:
     import torch
     from ultralytics.nn.tasks import SegmentationModel
 
-    from detector.training import recalibrate_batchnorm
+    from detector.training.train import recalibrate_batchnorm
     from export.onnx_export import export_onnx
     from naoslam.landmarks import CLASSES
 

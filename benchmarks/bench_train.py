@@ -27,7 +27,7 @@ def one_run(model: str, imgsz: int, variant: str, data: str) -> None:
     """Train one epoch and print the timed images/s as JSON (runs in a child process)."""
     from ultralytics import YOLO
 
-    from detector.training import CpuSegmentationTrainer, use_all_cores
+    from detector.training.train import CpuSegmentationTrainer, use_all_cores
 
     options = VARIANTS[variant]
     if options.get("threads") == "all":

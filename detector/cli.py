@@ -9,7 +9,7 @@ from pathlib import Path
 
 from augment.config import OPERATIONS, AugmentConfig
 from detector.errors import run_command
-from detector.openmp_wait import sleep_while_waiting
+from detector.training.openmp_wait import sleep_while_waiting
 from detector.synth.scene import SceneConfig
 from naoslam.sim import PATHS, SimConfig
 
@@ -485,8 +485,8 @@ def _choose_wait_policy(threads: int | str | None) -> None:
 
 def _train(args: argparse.Namespace) -> int:
     _choose_wait_policy(args.threads)
-    from detector.starting_point import starting_point
-    from detector.training import TrainSettings, parse_hyperparameters, summarise_run, train_model
+    from detector.training.starting_point import starting_point
+    from detector.training.train import TrainSettings, parse_hyperparameters, summarise_run, train_model
 
     if args.resume and args.hyperparameters:
         raise ValueError("--set with --resume: a resumed run keeps the arguments it started with - drop --set")
@@ -516,7 +516,7 @@ def _export(args: argparse.Namespace) -> int:
 
 
 def _soup(args: argparse.Namespace) -> int:
-    from detector.soup import blend_checkpoints
+    from detector.training.soup import blend_checkpoints
 
     first, second = args.weights
     out = blend_checkpoints(first, second, args.alpha, args.out, args.force)

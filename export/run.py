@@ -67,7 +67,7 @@ def dataset_images(data: Path, splits: tuple[str, ...], limit: int, flag: str) -
 
 def training_dataset(weights: Path) -> Path:
     """The dataset folder a checkpoint was trained on (from its train_args), for when --data is not given."""
-    from detector.training import read_checkpoint
+    from detector.training.train import read_checkpoint
 
     data = (read_checkpoint(weights).get("train_args") or {}).get("data")
     if not data or not Path(data).exists():
@@ -86,7 +86,7 @@ def read_frames(paths: list[Path]) -> list[np.ndarray]:
 
 def run_export(job: ExportJob) -> dict:
     """Export, verify, optionally quantise; returns the report (also written to ``job.report_path``)."""
-    from detector.training import read_checkpoint
+    from detector.training.train import read_checkpoint
 
     read_checkpoint(job.weights)  # a clear error for a missing file or one that is not a checkpoint
     data = job.data or training_dataset(job.weights)

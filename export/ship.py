@@ -9,7 +9,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from calibration.run import load_calibration
-from detector.starting_point import SHIPPED_WEIGHTS
+from detector.training.starting_point import SHIPPED_WEIGHTS
 from export.onnx_export import read_info, write_metadata
 from naoslam.atomic import atomic_path
 from naoslam.detector import valid_confidence

@@ -35,7 +35,7 @@ def real_poles() -> Path:
 @pytest.fixture(scope="session")
 def tiny_run(synth_dataset, tmp_path_factory) -> Path:
     """yolov8n-seg trained for one epoch at 64 px on the synthetic dataset (run folder)."""
-    from detector.training import TrainSettings, train_model
+    from detector.training.train import TrainSettings, train_model
 
     settings = TrainSettings(model="yolov8n-seg", epochs=1, imgsz=64, batch=8, workers=0)
     return train_model(synth_dataset, tmp_path_factory.mktemp("train") / "run", settings)
@@ -44,7 +44,7 @@ def tiny_run(synth_dataset, tmp_path_factory) -> Path:
 @pytest.fixture(scope="session")
 def tiny_weights(tiny_run, synth_dataset) -> Path:
     """The tiny run's checkpoint with batch-norm statistics re-estimated, so its detections depend on the frame."""
-    from detector.training import recalibrate_batchnorm
+    from detector.training.train import recalibrate_batchnorm
 
     images = sorted((synth_dataset / "train" / "images").glob("*.jpg"))[:16]
     return recalibrate_batchnorm(tiny_run / "weights" / "last.pt", images, (96, 128), tiny_run / "recalibrated.pt")

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import pytest
 
-import detector.cpu_threads as cpu_threads
-from detector.cpu_threads import ThreadTuner
+import detector.training.cpu_threads as cpu_threads
+from detector.training.cpu_threads import ThreadTuner
 
 
 @pytest.mark.parametrize("seconds_per_batch, expected", [({1: 2.1, 2: 1.1}, 2),   # idle: two threads help
@@ -45,7 +45,7 @@ def test_shared_machine_wait_policy_is_set_only_before_torch_loads():
     import subprocess
     import sys
 
-    code = ("import os; from detector.openmp_wait import sleep_while_waiting; first = sleep_while_waiting(); "
+    code = ("import os; from detector.training.openmp_wait import sleep_while_waiting; first = sleep_while_waiting(); "
             "policy = os.environ.pop('OMP_WAIT_POLICY', None); import torch; "
             "print(first, policy, sleep_while_waiting(), os.environ.get('OMP_WAIT_POLICY'))")
     env = {k: v for k, v in os.environ.items() if k != "OMP_WAIT_POLICY"}

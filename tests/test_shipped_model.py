@@ -15,8 +15,8 @@ import yaml
 from detector.cli import main
 from detector.synth.render import render_scene
 from detector.synth.scene import calibration_scene
-from detector.starting_point import SHIPPED_WEIGHTS
-from detector.training import TrainSettings, parse_hyperparameters, train_model
+from detector.training.starting_point import SHIPPED_WEIGHTS
+from detector.training.train import TrainSettings, parse_hyperparameters, train_model
 from export.ship import SIZE_BUDGET
 from naoslam.camera import CameraPose, PinholeCamera
 from naoslam.detector import LandmarkDetector

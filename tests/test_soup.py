@@ -8,8 +8,8 @@ import pytest
 import torch
 
 from detector.cli import main
-from detector.starting_point import SHIPPED_WEIGHTS
-from detector.training import read_checkpoint
+from detector.training.starting_point import SHIPPED_WEIGHTS
+from detector.training.train import read_checkpoint
 from naoslam.landmarks import CLASSES
 
 

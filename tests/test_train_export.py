@@ -12,8 +12,8 @@ import onnx
 import pytest
 
 from detector.cli import main
-from detector.training import TrainSettings, summarise_run, train_model
-from detector.training_curves import read_results
+from detector.training.train import TrainSettings, summarise_run, train_model
+from detector.training.curves import read_results
 from export.onnx_export import export_onnx, read_info
 from export.quantize import decode_head_nodes
 from export.run import ExportJob, ExportMismatch, run_export
@@ -160,7 +160,7 @@ def test_export_never_writes_over_its_inputs_even_with_force(where, tiny_weights
 @pytest.mark.parametrize("saved_an_epoch", [False, True])
 def test_a_run_that_fails_leaves_only_what_resume_can_use(saved_an_epoch, synth_dataset, tmp_path, monkeypatch):
     """A device that is not there (`--device 0` without a GPU) used to leave RUN/dataset behind."""
-    import detector.training as training
+    import detector.training.train as training
 
     def fail(model, tuner, **options):
         if saved_an_epoch:
@@ -175,7 +175,7 @@ def test_a_run_that_fails_leaves_only_what_resume_can_use(saved_an_epoch, synth_
 
 
 def test_an_interrupted_run_resumes_where_it_stopped(synth_dataset, tmp_path, monkeypatch):
-    import detector.training as training
+    import detector.training.train as training
 
     original = training.CpuSegmentationTrainer.__init__
 

@@ -13,7 +13,7 @@ from rich.table import Table
 
 from detector.console import make_console
 from detector.demo.stages import StageFailed, StageLedger, file_fingerprint, stage_key
-from detector.starting_point import SHIPPED_WEIGHTS, starting_point
+from detector.training.starting_point import SHIPPED_WEIGHTS, starting_point
 
 console = make_console()
 
@@ -170,7 +170,7 @@ def _starting_conf(model: str) -> float | None:
 def _train(ledger: StageLedger, name: str, key: str, data: Path, run: Path, model: str, weights: Path | None,
            budget: Budget, seed: int) -> dict:
     """Train from ``weights``, resuming an interrupted run of the same stage; other leftovers are started afresh."""
-    from detector.training import TrainSettings, summarise_run, train_model
+    from detector.training.train import TrainSettings, summarise_run, train_model
 
     previous = ledger.previous(name)
     resume = bool(previous and previous.key == key and (run / "weights" / "last.pt").is_file())

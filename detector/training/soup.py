@@ -15,7 +15,7 @@ from pathlib import Path
 import torch
 
 from detector.datasets.io import check_output_file
-from detector.training import read_checkpoint
+from detector.training.train import read_checkpoint
 from naoslam.atomic import atomic_path
 
 

@@ -21,9 +21,9 @@ from ultralytics.models.yolo.segment import SegmentationTrainer
 from ultralytics.utils import DEFAULT_CFG, DEFAULT_CFG_DICT, torch_utils
 
 from detector.console import bars_as_log_lines
-from detector.cpu_threads import ThreadTuner
+from detector.training.cpu_threads import ThreadTuner
 from detector.datasets.intake import open_dataset, training_view
-from detector.training_curves import best_epoch, plot_training_curves
+from detector.training.curves import best_epoch, plot_training_curves
 
 #: Segmentation models that can be built from their YAML without a download.
 MODELS = ("yolov8n-seg", "yolov8s-seg", "yolov8m-seg")

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 #: The pole-pretrained checkpoint shipped with the package (the source of naoslam's shipped ONNX models).
-SHIPPED_WEIGHTS = Path(__file__).resolve().parent / "weights" / "poles-yolov8n-seg.pt"
+SHIPPED_WEIGHTS = Path(__file__).resolve().parents[1] / "weights" / "poles-yolov8n-seg.pt"
 #: Its architecture.
 SHIPPED_ARCHITECTURE = "yolov8n-seg"
 #: ``--weights`` value that trains from the YAML instead.
