@@ -162,7 +162,6 @@ def _best_threshold(m: dict) -> str:
     return "any" if flat else f"{m['best_f1_conf']:.2f}"
 
 
-
 def print_metrics(rows: list[dict]) -> None:
     """Side-by-side table of several evaluations, like the thesis's table 4.2."""
     from detector.console import make_console
