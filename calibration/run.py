@@ -79,7 +79,7 @@ def plot_fit(samples: list[SizeSample], calibration: RangeCalibration, png: Path
              walk_samples: list[SizeSample] | None = None) -> Path:
     """Range against width and height (log-log) with the fitted laws and the thesis's, behind them the walk's
     sightings (``--noise-data``) whose spread the filter is told."""
-    from detector.figures import plt, save_figure
+    from detector.figures import log_log, plt, save_figure
 
     hfov = calibration.hfov_deg if calibration.off_axis_corrected else None
     columns = as_arrays(samples, calibration.reference_width_px, hfov)
@@ -100,10 +100,9 @@ def plot_fit(samples: list[SizeSample], calibration: RangeCalibration, png: Path
         ax.plot(grid, law(grid), label=f"fit {law.a:.4g} px^{law.b:.3f}")
         if calibration.reference_width_px == 640:
             ax.plot(grid, thesis[0] * grid ** thesis[1], linestyle="--", label=f"thesis {thesis[0]} px^{thesis[1]}")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
+        log_log(ax)
         on_axis = ", on the optical axis" if calibration.off_axis_corrected else ""
-        ax.set_xlabel(f"rotated-box {key} (px at {calibration.reference_width_px} px image width{on_axis})")
+        ax.set_xlabel(f"rotated-box {key} (px)\nat {calibration.reference_width_px} px image width{on_axis}")
         ax.set_ylabel("true range (m)")
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=8)

@@ -432,3 +432,18 @@ def test_a_front_end_without_scores_has_no_best_threshold(synth_dataset, tmp_pat
     assert main(["evaluate", str(synth_dataset), "--model", "colour-filter", "--out", str(tmp_path / "eval")]) == 0
     row = next(line for line in capsys.readouterr().out.splitlines() if "best-F1 threshold" in line)
     assert re.search(r"any \(\d\.\d{3}\)", row)
+
+
+def test_the_fit_plot_labels_its_log_axes_in_plain_numbers_at_1_2_and_5():
+    """matplotlib's own labels for a decade-wide log axis ran into each other (2x10^1 3x10^1 4x10^1 ...)."""
+    from detector.figures import log_log, plt
+
+    fig, ax = plt.subplots()
+    ax.plot([4, 120], [0.4, 12])
+    log_log(ax)
+    fig.canvas.draw()
+    x_labels = {t.get_text() for t in ax.get_xticklabels()} - {""}
+    y_labels = {t.get_text() for t in ax.get_yticklabels()} - {""}
+    plt.close(fig)
+    assert {"5", "10", "20", "50", "100"} <= x_labels and {"0.5", "1", "2", "5", "10"} <= y_labels
+    assert not any("$" in label for label in x_labels | y_labels)
