@@ -20,7 +20,7 @@ from detector.datasets.io import (IMAGE_SUFFIXES, DatasetWriter, check_output_fi
                                   require_decodable)
 from detector.datasets.model import Instance
 from detector.datasets.polygons import mask_to_polygon
-from detector.preview import CLASS_BGR, contact_sheet
+from detector.preview import CLASS_BGR, contact_sheet, draw_label
 from naoslam.detector import Detection, LandmarkDetector
 from naoslam.landmarks import CLASSES
 from naoslam.measurement import MeasurementModel
@@ -211,7 +211,5 @@ def draw_detections(frame: np.ndarray, detections: list[Detection], measurer: Me
         text = f"{d.name} {d.confidence:.2f}"
         for m in measurer.measure([d], w) if measurer else []:
             text += f" {m.range_m:.2f} m {np.degrees(m.bearing_rad):+.1f} deg"
-        thickness, origin = max(1, round(2 * scale)), (x0, max(y0 - 5, 12))
-        for ink, width in (((0, 0, 0), thickness + 2), (colour.tolist(), thickness)):  # a dark edge reads on any floor
-            cv2.putText(out, text, origin, cv2.FONT_HERSHEY_SIMPLEX, scale, ink, width, cv2.LINE_AA)
+        draw_label(out, text, (x0, max(y0 - 5, 12)), colour.tolist(), scale, max(1, round(2 * scale)))
     return out

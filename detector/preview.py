@@ -15,6 +15,14 @@ from naoslam.landmarks import CLASSES
 CLASS_BGR = [(230, 160, 60), (90, 175, 50), (50, 215, 240), (160, 70, 235), (120, 60, 200), (60, 120, 250)]
 
 
+def draw_label(image_bgr: np.ndarray, text: str, origin: tuple[int, int], colour, scale: float = 0.45,
+               thickness: int = 1) -> None:
+    """Write ``text`` in ``colour`` at ``origin`` (its baseline's left end) with a dark edge, readable on any floor,
+    wall or pole."""
+    for ink, width in (((0, 0, 0), thickness + 2), (colour, thickness)):
+        cv2.putText(image_bgr, text, origin, cv2.FONT_HERSHEY_SIMPLEX, scale, ink, width, cv2.LINE_AA)
+
+
 def draw_instances(image_bgr: np.ndarray, instances: list[Instance]) -> np.ndarray:
     """A copy of the image with each instance's polygon outlined and labelled with its class."""
     out = image_bgr.copy()
@@ -25,7 +33,7 @@ def draw_instances(image_bgr: np.ndarray, instances: list[Instance]) -> np.ndarr
         points = np.round(instance.pixels(w, h)).astype(np.int32)
         cv2.polylines(out, [points], True, colour, thickness, cv2.LINE_AA)
         x, y = points[:, 0].min(), max(points[:, 1].min() - 4, 12)
-        cv2.putText(out, instance.cls, (int(x), int(y)), cv2.FONT_HERSHEY_SIMPLEX, 0.4 * thickness + 0.1, colour, thickness, cv2.LINE_AA)
+        draw_label(out, instance.cls, (int(x), int(y)), colour, 0.4 * thickness + 0.1, thickness)
     return out
 
 

@@ -10,6 +10,7 @@ from matplotlib.ticker import MaxNLocator
 
 from detector.evaluation.counting import ImageEvaluation
 from detector.figures import plt, save_figure
+from detector.preview import draw_label
 from naoslam.atomic import write_bytes
 
 COUNT_COLOURS = {"tp": "#2ca02c", "fp": "#d62728", "fn": "#ff7f0e", "tn": "#1f77b4"}
@@ -95,7 +96,7 @@ def _outline(image: np.ndarray, mask: np.ndarray, colour, text: str) -> None:
     cv2.drawContours(image, contours, -1, colour, 2)
     if contours:
         x, y, _, _ = cv2.boundingRect(np.concatenate(contours))
-        cv2.putText(image, text, (x, max(12, y - 4)), cv2.FONT_HERSHEY_SIMPLEX, 0.45, colour, 1, cv2.LINE_AA)
+        draw_label(image, text, (x, max(12, y - 4)), colour)
 
 
 def write_overlays(images: list[ImageEvaluation], frames: dict[str, Path], conf: float, folder: Path) -> int:
