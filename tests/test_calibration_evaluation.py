@@ -18,7 +18,8 @@ from detector.cli import FALLBACK_CONF, main
 from detector.datasets import load_dataset
 from detector.datasets.truth import load_truth
 from detector.evaluation.by_width import label_width_px, recall_by_width, width_bin_names
-from detector.evaluation.counting import confusion_matrix, evaluate_image, outcome, precision_recall, totals
+from detector.evaluation.counting import (best_threshold, confusion_matrix, evaluate_image, outcome, precision_recall,
+                                          totals)
 from detector.evaluation.predictors import ColourFilterPredictor, OnnxPredictor, Prediction
 from detector.evaluation.run import evaluate
 from detector.synth.generate import SynthJob, generate_dataset
@@ -447,3 +448,9 @@ def test_the_fit_plot_labels_its_log_axes_in_plain_numbers_at_1_2_and_5():
     plt.close(fig)
     assert {"5", "10", "20", "50", "100"} <= x_labels and {"0.5", "1", "2", "5", "10"} <= y_labels
     assert not any("$" in label for label in x_labels | y_labels)
+
+
+def test_the_best_threshold_is_the_best_f1s_and_none_when_every_threshold_counts_the_same():
+    rows = [{"conf": c, "f1": f1} for c, f1 in ((0.25, 0.80), (0.5, 0.91), (0.75, 0.88))]
+    assert best_threshold(rows) == 0.5
+    assert best_threshold([{**row, "f1": 0.59} for row in rows]) is None

@@ -149,6 +149,14 @@ def confidence_sweep(images: list[ImageEvaluation], thresholds: np.ndarray | Non
     return rows
 
 
+def best_threshold(sweep: list[dict]) -> float | None:
+    """The threshold of the sweep's best F1, or None when every threshold counts the same (a front end whose
+    detections all have one confidence, as the colour filter's do): then no threshold is better than another."""
+    if len({round(row["f1"], 9) for row in sweep}) == 1:
+        return None
+    return max(sweep, key=lambda row: row["f1"])["conf"]
+
+
 def map_scores(images: list[ImageEvaluation], classes: tuple[str, ...]) -> dict[str, float] | None:
     """Ultralytics' mAP50 and mAP50-95 over mask IoU (None for the colour filter, which has no masks)."""
     if not images or images[0].point_matching:

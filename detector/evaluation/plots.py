@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 from matplotlib.ticker import MaxNLocator
 
-from detector.evaluation.counting import ImageEvaluation
+from detector.evaluation.counting import ImageEvaluation, best_threshold
 from detector.figures import plt, save_figure
 from detector.preview import draw_label
 from naoslam.atomic import write_bytes
@@ -46,11 +46,15 @@ def plot_sweep(sweep: list[dict], png: Path, title: str) -> Path:
     conf = [row["conf"] for row in sweep]
     for key in ("precision", "recall", "f1"):
         ax.plot(conf, [row[key] for row in sweep], label=key)
-    best = max(sweep, key=lambda row: row["f1"])
-    ax.axvline(best["conf"], color="grey", linestyle=":", label=f"best F1 at {best['conf']:.2f}")
+    best = best_threshold(sweep)
+    if best is not None:
+        ax.axvline(best, color="grey", linestyle=":", label=f"best F1 at {best:.2f}")
+    else:
+        ax.text(0.5, 0.75, "one score for every detection:\nthe threshold changes nothing", transform=ax.transAxes,
+                ha="center", va="center", fontsize=9, color="0.3")
+    ax.set_title(f"{title}: confidence sweep")
     ax.set_xlabel("confidence threshold")
     ax.set_ylim(0, 1.02)
-    ax.set_title(f"{title}: confidence sweep")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     return save_figure(fig, png)

@@ -12,8 +12,8 @@ from detector.datasets.intake import open_dataset
 from detector.datasets.polygons import polygon_to_mask
 from detector.datasets.truth import load_truth
 from detector.evaluation.by_width import recall_by_width, width_bin_names
-from detector.evaluation.counting import (ImageEvaluation, confidence_sweep, confusion_matrix, evaluate_image,
-                                          map_scores, outcome, precision_recall, totals)
+from detector.evaluation.counting import (ImageEvaluation, best_threshold, confidence_sweep, confusion_matrix,
+                                          evaluate_image, map_scores, outcome, precision_recall, totals)
 from detector.evaluation.plots import plot_confusion, plot_per_image, plot_recall_by_width, plot_sweep, write_overlays
 from detector.evaluation.predictors import Predictor
 from naoslam.atomic import write_json
@@ -151,15 +151,13 @@ TABLE_ROWS = {
                                            if "range_error" in m else "-"),
     "bearing error median / p90": lambda m: (f"{m['bearing_error']['median']:.2f} / {m['bearing_error']['p90']:.2f} deg"
                                              if "bearing_error" in m else "-"),
-    "best-F1 threshold (F1)": lambda m: f"{_best_threshold(m)} ({m['best_f1']:.3f})",
+    "best-F1 threshold (F1)": lambda m: _best_f1(m),
 }
 
 
-def _best_threshold(m: dict) -> str:
-    """The best-F1 threshold, or "any" when every threshold of the sweep scores the same (a front end whose
-    detections all have one confidence, as the colour filter's do)."""
-    flat = len({round(row["f1"], 9) for row in m["sweep"]}) == 1
-    return "any" if flat else f"{m['best_f1_conf']:.2f}"
+def _best_f1(m: dict) -> str:
+    threshold = best_threshold(m["sweep"])
+    return f"{'any' if threshold is None else f'{threshold:.2f}'} ({m['best_f1']:.3f})"
 
 
 def print_metrics(rows: list[dict]) -> None:
