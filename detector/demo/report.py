@@ -17,7 +17,7 @@ table { border-collapse: collapse; margin: .6em 0; font-size: .92em; }
 th, td { border: 1px solid #ccc; padding: .25em .6em; text-align: right; }
 th:first-child, td:first-child { text-align: left; } th { background: #f2f2f2; }
 img { max-width: 100%; border: 1px solid #ddd; margin: .3em 0; }
-.row { display: flex; gap: .6em; flex-wrap: wrap; } .row img { max-width: 49%; }
+.row { display: flex; gap: .6em; flex-wrap: wrap; align-items: flex-start; } .row img { max-width: 49%; height: auto; }
 .note { color: #555; font-size: .92em; }
 """
 
