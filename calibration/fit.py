@@ -20,7 +20,10 @@ RANGE_BINS = (0.0, 0.75, 1.25, 2.0, 3.0, 4.0, 6.0, 9.5)
 #: 15.9 % (3,587 sightings, reading 9 % near), height law 2.0 % (3,423); re-measured on 2026-11-25 with the laws
 #: fitted on shots out to 9 m: 16.2 % and 1.8 %; then (rule v20) on level sizes of shots whose camera rolls:
 #: 12.8 % (reading 4 % near) and 1.7 %. A filter told less than this is over-confident and maps a pole twice.
-WALK_RELATIVE_STD = {"width": 0.13, "height": 0.020}
+#: The colour filter's law (fitted on its own band distances since 2026-11-25), on the same nine walks: 6.6 %
+#: (2,242 sightings, reading 3.7 % near); before, told its still shots' 2.6 %, it had every sighting gated out of
+#: localisation on the true map.
+WALK_RELATIVE_STD = {"width": 0.13, "height": 0.020, "colour": 0.066}
 #: Fewest sightings of a walk that measure a law's noise (``--noise-data``).
 MIN_NOISE_SIGHTINGS = 20
 
@@ -74,7 +77,7 @@ def calibrate(samples: list[SizeSample], geometry: PoleGeometry = PoleGeometry()
     noise. Each law's noise is at least a walking robot's: measured on ``walk_samples`` (sightings in a walk's
     frames) when given, else ``WALK_RELATIVE_STD``."""
     reference_width = samples[0].image_width
-    columns = as_arrays(samples, reference_width, hfov_deg)
+    columns = as_arrays(samples, reference_width, hfov_deg, geometry)
     whole = ~columns["partial"]
     if len(np.unique(np.round(columns["range"][whole], 3))) < 2:  # too few whole poles: use every pole
         whole = np.ones_like(whole)
@@ -83,9 +86,11 @@ def calibrate(samples: list[SizeSample], geometry: PoleGeometry = PoleGeometry()
     upright_ratio = float(np.median(columns["width"][whole] / columns["height"][whole]))
     report = {"samples": len(samples), "reference_width_px": reference_width, "width": width_fit.as_dict(),
               "height": height_fit.as_dict(), "upright_ratio": upright_ratio}
-    colour = _colour_law(samples, geometry, report)
     bearing_std = _bearing_std(samples, hfov_deg, report)
-    walk = None if walk_samples is None else as_arrays(walk_samples, reference_width, hfov_deg)
+    walk = None if walk_samples is None else as_arrays(walk_samples, reference_width, hfov_deg, geometry)
+    colour = _colour_law(columns, report)
+    if colour is not None:
+        colour = _walk_noise(colour, "colour", walk, report)
     calibration = RangeCalibration(_walk_noise(width_fit.law, "width", walk, report),
                                    _walk_noise(height_fit.law, "height", walk, report), reference_width, upright_ratio,
                                    bearing_std_rad=bearing_std, hfov_deg=hfov_deg, colour_law=colour,
@@ -99,11 +104,14 @@ def calibrate(samples: list[SizeSample], geometry: PoleGeometry = PoleGeometry()
 
 def _walk_noise(law: PowerLaw, size: str, walk: dict[str, np.ndarray] | None, report: dict) -> PowerLaw:
     """The fitted law with its relative s.d. raised to at least a walking robot's: the law's spread on the walk's
-    sightings (heights of whole poles only), or ``WALK_RELATIVE_STD`` without them."""
-    if walk is None:
+    sightings (heights of whole poles only), or ``WALK_RELATIVE_STD`` without them. The colour filter is a baseline:
+    a walk where it finds too few poles keeps its default rather than refusing the model's calibration."""
+    keep = None if walk is None else measures_law(walk, size)
+    if keep is None or (size == "colour" and keep.sum() < MIN_NOISE_SIGHTINGS):
         floor = WALK_RELATIVE_STD[size]
+        if keep is not None:
+            report[size]["walk_too_few"] = int(keep.sum())
     else:
-        keep = measures_law(walk, size)
         if keep.sum() < MIN_NOISE_SIGHTINGS:
             raise ValueError(f"--noise-data: {int(keep.sum())} sightings measure the {size} law, at least "
                              f"{MIN_NOISE_SIGHTINGS} needed - add frames of the walk (whole poles for the height law)")
@@ -125,15 +133,13 @@ def robust_spread(errors: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(errors)))
 
 
-def _colour_law(samples: list[SizeSample], geometry: PoleGeometry, report: dict) -> PowerLaw | None:
-    """Range from pixels per cm between the two band centres (the colour filter's law), where the truth has it."""
-    usable = [s for s in samples if s.band_distance_px]
-    if len(usable) < 2:
+def _colour_law(columns: dict[str, np.ndarray], report: dict) -> PowerLaw | None:
+    """The colour filter's law: range from its own pixels per cm between the two band centres, on the poles it
+    found (None when it found too few at two ranges)."""
+    found = measures_law(columns, "colour")
+    if len(np.unique(np.round(columns["range"][found], 3))) < 2:
         return None
-    spacing_cm = geometry.band_height * 100
-    scale = np.array([samples[0].image_width / s.image_width for s in usable])
-    per_cm = np.array([s.band_distance_px for s in usable]) * scale / spacing_cm
-    fit = fit_law(per_cm, np.array([s.range_m for s in usable]))
+    fit = fit_law(columns["colour"][found], columns["range"][found])
     report["colour"] = fit.as_dict()
     return fit.law
 

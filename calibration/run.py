@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration.fit import WALK_RELATIVE_STD, calibrate
+from calibration.fit import MIN_NOISE_SIGHTINGS, WALK_RELATIVE_STD, calibrate
 from calibration.samples import MEASURE_CONF, SizeSample, as_arrays, measure_samples, measures_law, open_ranged
 from detector.datasets.io import check_output_file
 from naoslam.atomic import write_json
@@ -140,10 +140,13 @@ def print_calibration(result: dict) -> None:
                        f"{row['fused+foot']:.1f} %" if "fused+foot" in row else "-")
     console = make_console()
     console.print(laws)
-    walk = {key: report[key]["walk"] for key in ("width", "height") if "walk" in report[key]}
+    walk = {key: report[key]["walk"] for key in WALK_RELATIVE_STD if "walk" in report.get(key, {})}
     floors = (", ".join(f"{key} {100 * w['relative_std']:.1f} % (median error {100 * w['median_log_error']:+.1f} %, "
                         f"{w['sightings']} sightings)" for key, w in walk.items()) if walk
               else ", ".join(f"{key} {100 * std:.1f} %" for key, std in WALK_RELATIVE_STD.items()))
+    if "walk_too_few" in report.get("colour", {}):
+        floors += (f", colour {100 * WALK_RELATIVE_STD['colour']:.1f} % (the default: the colour filter found "
+                   f"{report['colour']['walk_too_few']} poles in the walk, {MIN_NOISE_SIGHTINGS} needed)")
     console.print(f"the filter is told the larger of each law's residual and a walking robot's noise: {floors}, "
                   f"measured on {report['noise_source']}")
     console.print(errors)

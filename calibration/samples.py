@@ -14,8 +14,10 @@ from detector.datasets.model import Dataset
 from detector.datasets.truth import ImageTruth, load_truth
 from detector.matching import mask_iou
 from naoslam.camera import NAO_HFOV_DEG, CameraPose, PinholeCamera
+from naoslam.colour_filter import ColourDetection, ColourFilter
 from naoslam.detector import LandmarkDetector, mask_centre_column, rotated_box_of_mask
 from naoslam.ground import GroundView
+from naoslam.landmarks import PoleGeometry
 from naoslam.measurement import on_axis_size
 
 
@@ -32,6 +34,7 @@ class SizeSample:
     image_width: int
     partial: bool = False
     bearing_rad: float | None = None
+    #: What the colour filter measures of this pole (px between its band centres), None where it misses it.
     band_distance_px: float | None = None
     foot_range_m: float | None = None
     foot_range_std: float | None = None
@@ -64,8 +67,10 @@ MEASURE_CONF = 0.25
 def measure_samples(ranged: RangedDataset, detector: LandmarkDetector | None = None, progress: bool = True,
                     hfov_deg: float = NAO_HFOV_DEG) -> list[SizeSample]:
     """Measure every pole with a true range: its labelled mask, or the ``detector``'s best same-class detection (and
-    its foot-row range where the image's camera pose is known)."""
+    its foot-row range where the image's camera pose is known); and what the colour filter measures of it, so that
+    its law is fitted on the band distances it will measure on the robot."""
     dataset, truth = ranged.dataset, ranged.truth
+    colour_filter = ColourFilter()
     samples = []
     for sample in show_progress(dataset.samples, "measuring", "img", enabled=progress):
         entries = truth.get(sample.image.name)
@@ -74,6 +79,7 @@ def measure_samples(ranged: RangedDataset, detector: LandmarkDetector | None = N
         frame = cv2.imread(str(sample.image))
         height, width = frame.shape[:2]
         detections = detector(frame) if detector else None
+        coloured = colour_filter(frame)
         for instance, entry in zip(sample.instances, entries):
             if not entry or entry.get("range_m") is None:
                 continue
@@ -99,7 +105,8 @@ def measure_samples(ranged: RangedDataset, detector: LandmarkDetector | None = N
             if partial is None:  # a truth CSV does not say: a pole whose outline reaches the border is cut
                 partial = touches_border(instance.polygon)
             samples.append(SizeSample(sample.image.name, instance.cls, range_m, box_width, box_height,
-                                      column, width, bool(partial), bearing, entry.get("band_centre_distance_px"),
+                                      column, width, bool(partial), bearing,
+                                      _colour_band_distance(coloured, instance.cls, label_mask),
                                       foot.range_m if foot else None, view.foot_range_std(foot) if foot else None))
     if not samples:
         raise ValueError(f"{dataset.root}: no pole with a true range could be measured"
@@ -121,6 +128,17 @@ def _matching_detection(detections, cls: str, label_mask: np.ndarray):
     return same[best] if overlap[best] >= MATCH_IOU else None
 
 
+def _colour_band_distance(found: list[ColourDetection], cls: str, label_mask: np.ndarray) -> float | None:
+    """The colour filter's band distance (px) for a labelled pole: its detection of that class whose band-dividing
+    point lies on the pole's mask, or None where the filter misses the pole."""
+    height, width = label_mask.shape
+    for detection in found:
+        x, y = (int(v) for v in detection.divide_centre)
+        if detection.name == cls and 0 <= x < width and 0 <= y < height and label_mask[y, x]:
+            return detection.band_distance_px
+    return None
+
+
 def _ground_view(camera: dict | None, width: int, height: int, hfov_deg: float) -> GroundView | None:
     """The image's camera over the floor when its pose is known (``annotations.json``'s ``camera``), else None."""
     if not camera:
@@ -138,18 +156,23 @@ def touches_border(polygon: np.ndarray) -> bool:
     return bool(polygon.min() <= BORDER_MARGIN or polygon.max() >= 1.0 - BORDER_MARGIN)
 
 
-def as_arrays(samples: list[SizeSample], reference_width: int,
-              hfov_deg: float | None = None) -> dict[str, np.ndarray]:
+def as_arrays(samples: list[SizeSample], reference_width: int, hfov_deg: float | None = None,
+              geometry: PoleGeometry = PoleGeometry()) -> dict[str, np.ndarray]:
     """Columns of the samples, pixel sizes scaled to ``reference_width`` and, given the camera's ``hfov_deg``, taken
-    to the optical axis (:func:`naoslam.measurement.on_axis_size`; a sample without a centre column is kept as is)."""
+    to the optical axis (:func:`naoslam.measurement.on_axis_size`; a sample without a centre column is kept as is);
+    ``colour``: the colour filter's band distance in px per cm of band spacing (NaN where it missed the pole)."""
     sizes = [on_axis_size(s.width_px, s.height_px, s.centre_column, s.image_width, hfov_deg)
              if hfov_deg is not None and s.centre_column is not None else (s.width_px, s.height_px) for s in samples]
     scale = np.array([reference_width / s.image_width for s in samples])
+    band = np.array([np.nan if s.band_distance_px is None else s.band_distance_px for s in samples])
     return {"range": np.array([s.range_m for s in samples]), "width": np.array([w for w, _ in sizes]) * scale,
-            "height": np.array([h for _, h in sizes]) * scale, "partial": np.array([s.partial for s in samples])}
+            "height": np.array([h for _, h in sizes]) * scale, "partial": np.array([s.partial for s in samples]),
+            "colour": band * scale / (geometry.band_height * 100)}
 
 
 def measures_law(columns: dict[str, np.ndarray], size: str) -> np.ndarray:
     """Which rows of :func:`as_arrays` measure the ``size`` law: every pole for width, whole poles for height (a pole
-    cut by the border is not its own height)."""
+    cut by the border is not its own height), the poles the colour filter found for colour."""
+    if size == "colour":
+        return np.isfinite(columns["colour"])
     return np.ones_like(columns["partial"]) if size == "width" else ~columns["partial"]
