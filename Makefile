@@ -86,7 +86,7 @@ pole-model: $(STAMP)
 	$(BIN)/poles synth --out runs/pole-calib --images 195 --seed 5 --calibration-shots
 	$(BIN)/poles export --weights $(FINAL)/weights/best.pt --out $(FINAL)/poles-yolov8n-seg.onnx \
 		--data runs/pole-tune --int8 --dynamic --force
-	# The noise the filter is told: what the model's masks show in the frames of nine rendered walks.
+	# The noise the filter is told: what the model's masks (and the colour filter's band distances) show in the frames of nine rendered walks.
 	for walk in $(WALKS); do for seed in $(WALK_SEEDS); do \
 		$(BIN)/poles synth --out runs/walknoise/$$walk-$$seed --walk $$walk --seed $$seed --force || exit 1; done; done
 	$(BIN)/poles calibrate --data runs/pole-calib --out $(FINAL)/calibration.json \
