@@ -90,7 +90,7 @@ def calibrate(samples: list[SizeSample], geometry: PoleGeometry = PoleGeometry()
     walk = None if walk_samples is None else as_arrays(walk_samples, reference_width, hfov_deg, geometry)
     colour = _colour_law(columns, report)
     if colour is not None:
-        colour = _walk_noise(colour, "colour", walk, report)
+        colour = _walk_noise(colour, "colour", walk, report, required=False)
     calibration = RangeCalibration(_walk_noise(width_fit.law, "width", walk, report),
                                    _walk_noise(height_fit.law, "height", walk, report), reference_width, upright_ratio,
                                    bearing_std_rad=bearing_std, hfov_deg=hfov_deg, colour_law=colour,
@@ -102,12 +102,13 @@ def calibrate(samples: list[SizeSample], geometry: PoleGeometry = PoleGeometry()
     return calibration, report
 
 
-def _walk_noise(law: PowerLaw, size: str, walk: dict[str, np.ndarray] | None, report: dict) -> PowerLaw:
+def _walk_noise(law: PowerLaw, size: str, walk: dict[str, np.ndarray] | None, report: dict,
+                required: bool = True) -> PowerLaw:
     """The fitted law with its relative s.d. raised to at least a walking robot's: the law's spread on the walk's
-    sightings (heights of whole poles only), or ``WALK_RELATIVE_STD`` without them. The colour filter is a baseline:
-    a walk where it finds too few poles keeps its default rather than refusing the model's calibration."""
+    sightings (heights of whole poles only), or ``WALK_RELATIVE_STD`` without them. A walk with too few sightings is
+    refused where the law is ``required``; otherwise (the colour filter, a baseline) it keeps the default."""
     keep = None if walk is None else measures_law(walk, size)
-    if keep is None or (size == "colour" and keep.sum() < MIN_NOISE_SIGHTINGS):
+    if keep is None or (not required and keep.sum() < MIN_NOISE_SIGHTINGS):
         floor = WALK_RELATIVE_STD[size]
         if keep is not None:
             report[size]["walk_too_few"] = int(keep.sum())

@@ -15,12 +15,17 @@ from naoslam.landmarks import CLASSES
 CLASS_BGR = [(230, 160, 60), (90, 175, 50), (50, 215, 240), (160, 70, 235), (120, 60, 200), (60, 120, 250)]
 
 
+#: Text on frames and sheets: OpenCV's built-in Hershey font (nothing to download); captions' scale and line height.
+FONT = cv2.FONT_HERSHEY_SIMPLEX
+CAPTION_SCALE, CAPTION_LINE_PX = 0.4, 13
+
+
 def draw_label(image_bgr: np.ndarray, text: str, origin: tuple[int, int], colour, scale: float = 0.45,
                thickness: int = 1) -> None:
     """Write ``text`` in ``colour`` at ``origin`` (its baseline's left end) with a dark edge, readable on any floor,
     wall or pole."""
     for ink, width in (((0, 0, 0), thickness + 2), (colour, thickness)):
-        cv2.putText(image_bgr, text, origin, cv2.FONT_HERSHEY_SIMPLEX, scale, ink, width, cv2.LINE_AA)
+        cv2.putText(image_bgr, text, origin, FONT, scale, ink, width, cv2.LINE_AA)
 
 
 def draw_instances(image_bgr: np.ndarray, instances: list[Instance]) -> np.ndarray:
@@ -37,17 +42,13 @@ def draw_instances(image_bgr: np.ndarray, instances: list[Instance]) -> np.ndarr
     return out
 
 
-#: Caption text: OpenCV's built-in Hershey font (nothing to download), its scale and line height in pixels.
-CAPTION_FONT, CAPTION_SCALE, CAPTION_LINE_PX = cv2.FONT_HERSHEY_SIMPLEX, 0.4, 13
-
-
 def wrap_caption(caption: str, width_px: int) -> list[str]:
     """The caption broken after spaces and '+' into lines no wider than ``width_px`` (a word wider than that keeps
     a line of its own)."""
     lines = [""]
     for piece in re.findall(r"[^ +]+[ +]*|[ +]+", caption):
         trial = lines[-1] + piece
-        if lines[-1] and cv2.getTextSize(trial.rstrip(), CAPTION_FONT, CAPTION_SCALE, 1)[0][0] > width_px:
+        if lines[-1] and cv2.getTextSize(trial.rstrip(), FONT, CAPTION_SCALE, 1)[0][0] > width_px:
             lines.append(piece)
         else:
             lines[-1] = trial
@@ -66,7 +67,7 @@ def contact_sheet(tiles: list[tuple[np.ndarray, str]], path: str | Path, columns
         tile = cv2.resize(image, (tile_width, round(image.shape[0] * tile_width / image.shape[1])), interpolation=cv2.INTER_AREA)
         header = np.zeros((header_h, tile_width, 3), np.uint8)
         for number, line in enumerate(lines, start=1):
-            cv2.putText(header, line, (4, CAPTION_LINE_PX * number - 1), CAPTION_FONT, CAPTION_SCALE, (255, 255, 255),
+            cv2.putText(header, line, (4, CAPTION_LINE_PX * number - 1), FONT, CAPTION_SCALE, (255, 255, 255),
                         1, cv2.LINE_AA)
         scaled.append(np.vstack([header, tile]))
     tile_h = max(t.shape[0] for t in scaled)

@@ -16,7 +16,7 @@ from detector.cli import main
 from detector.datasets import Instance, load_dataset
 from detector.datasets.polygons import clip_polygon, mask_to_polygon, polygon_area, polygon_to_mask
 from detector.datasets.split import split_dataset
-from detector.preview import CAPTION_FONT, CAPTION_SCALE, wrap_caption
+from detector.preview import CAPTION_SCALE, FONT, wrap_caption
 from detector.synth.objects import pole
 from detector.synth.render import render_scene
 from detector.synth.scene import calibration_scene
@@ -157,7 +157,7 @@ def test_a_caption_is_wrapped_to_the_tile_never_cut(width):
     caption = " + ".join(OPERATIONS)
     lines = wrap_caption(caption, width)
     assert " ".join(lines).replace(" ", "") == caption.replace(" ", "")
-    fits = [cv2.getTextSize(line, CAPTION_FONT, CAPTION_SCALE, 1)[0][0] <= width for line in lines]
+    fits = [cv2.getTextSize(line, FONT, CAPTION_SCALE, 1)[0][0] <= width for line in lines]
     assert all(fit or " " not in line.strip(" +") for fit, line in zip(fits, lines))  # only a lone word overhangs
     assert len(lines) > 1
 
