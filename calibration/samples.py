@@ -18,7 +18,7 @@ from naoslam.colour_filter import ColourDetection, ColourFilter
 from naoslam.detector import LandmarkDetector, mask_centre_column, rotated_box_of_mask
 from naoslam.ground import GroundView
 from naoslam.landmarks import PoleGeometry
-from naoslam.measurement import on_axis_size
+from naoslam.measurement import off_axis_cos, on_axis_size
 
 
 @dataclass(frozen=True)
@@ -160,11 +160,14 @@ def as_arrays(samples: list[SizeSample], reference_width: int, hfov_deg: float |
               geometry: PoleGeometry = PoleGeometry()) -> dict[str, np.ndarray]:
     """Columns of the samples, pixel sizes scaled to ``reference_width`` and, given the camera's ``hfov_deg``, taken
     to the optical axis (:func:`naoslam.measurement.on_axis_size`; a sample without a centre column is kept as is);
-    ``colour``: the colour filter's band distance in px per cm of band spacing (NaN where it missed the pole)."""
+    ``colour``: the colour filter's band distance in px per cm of band spacing, taken to the axis the same way (NaN
+    where it missed the pole)."""
     sizes = [on_axis_size(s.width_px, s.height_px, s.centre_column, s.image_width, hfov_deg)
              if hfov_deg is not None and s.centre_column is not None else (s.width_px, s.height_px) for s in samples]
+    bands = [s.band_distance_px * off_axis_cos(s.centre_column, s.image_width, hfov_deg)
+             if None not in (hfov_deg, s.centre_column, s.band_distance_px) else s.band_distance_px for s in samples]
     scale = np.array([reference_width / s.image_width for s in samples])
-    band = np.array([np.nan if s.band_distance_px is None else s.band_distance_px for s in samples])
+    band = np.array([np.nan if b is None else b for b in bands])
     return {"range": np.array([s.range_m for s in samples]), "width": np.array([w for w, _ in sizes]) * scale,
             "height": np.array([h for _, h in sizes]) * scale, "partial": np.array([s.partial for s in samples]),
             "colour": band * scale / (geometry.band_height * 100)}

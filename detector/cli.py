@@ -293,7 +293,8 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--conf", type=_confidence,
                           help="confidence threshold for the counts (default: the model's own, else 0.5)")
     evaluate.add_argument("--calibration", type=Path, help="calibration.json for range errors "
-                                                           "(default: the one embedded in the ONNX model)")
+                                                           "(default: the one embedded in the ONNX model; for the "
+                                                           "colour filter, the shipped model's colour law)")
     _add_input_width_argument(evaluate, "a .pt checkpoint at 640 unless given; ONNX: ")
     evaluate.add_argument("--out", type=Path, required=True, help="folder for metrics.json, plots and FP/FN overlays")
     evaluate.add_argument("--force", action="store_true", help="replace --out if it holds files")
@@ -306,7 +307,8 @@ def build_parser() -> argparse.ArgumentParser:
     slam.add_argument("--odometry", type=Path, help="odometry CSV t,x,y,theta for --frames")
     slam.add_argument("--frontend", help="model.onnx, `shipped` or colour-filter: the image-level simulation / "
                                          "recording (default for --frames: the shipped model)")
-    slam.add_argument("--calibration", type=Path, help="calibration.json (default: the one in the model)")
+    slam.add_argument("--calibration", type=Path, help="calibration.json (default: the one in the model; for "
+                                                   "colour-filter, the shipped model's colour law)")
     _add_input_width_argument(slam)
     slam.add_argument("--conf", type=_confidence,
                       help="detections used from this confidence (default: the model's own threshold, else 0.85)")

@@ -15,6 +15,7 @@ _PUBLIC = {
     "LandmarkDetector": "naoslam.detector",
     "Detection": "naoslam.detector",
     "shipped_model": "naoslam.shipped",
+    "shipped_calibration": "naoslam.detector",
     "RangeCalibration": "naoslam.measurement",
     "MeasurementModel": "naoslam.measurement",
     "Measurement": "naoslam.measurement",

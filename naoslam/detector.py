@@ -352,6 +352,12 @@ class LandmarkDetector:
                          origin, rotated, centre_column)
 
 
+def shipped_calibration() -> RangeCalibration | None:
+    """The range calibration stored in the shipped model. Its colour law is the colour filter's on the Nao's camera,
+    the same whatever model runs beside it, so the colour filter ranges with it when it is given no calibration."""
+    return LandmarkDetector(shipped_model(int8=True), threads=1).stored_calibration
+
+
 def _shifted(detection: Detection, rows: int) -> Detection:
     """A detection found in a band that starts ``rows`` below the frame's top, in frame coordinates."""
     x1, y1, x2, y2 = detection.box

@@ -70,6 +70,8 @@ class RangeCalibration:
     extra: dict = field(default_factory=dict)
     #: The laws were fitted on on-axis sizes (:func:`on_axis_size`); calibrations from before 2026-11-24 were not.
     off_axis_corrected: bool = False
+    #: The colour law too was fitted on on-axis band distances; calibrations written before it was added (2026-11-25) were not.
+    colour_off_axis_corrected: bool = False
     #: The network input width whose masks the laws were fitted to: a model's masks, and so its pixel sizes, change
     #: with it. None: label masks, or a calibration from before 2026-11-24 (not checked).
     input_width: int | None = None
@@ -109,11 +111,14 @@ class RangeCalibration:
         return fused, fused / math.sqrt(weights.sum()), "fused"
 
 
-    def colour_range(self, band_distance_px: float, image_width: int,
-                     geometry: PoleGeometry = PoleGeometry()) -> tuple[float, float]:
-        """Range (m) and its standard deviation from the colour filter's band-centre distance (pixels)."""
+    def colour_range(self, band_distance_px: float, image_width: int, geometry: PoleGeometry = PoleGeometry(),
+                     column: float | None = None) -> tuple[float, float]:
+        """Range (m) and its standard deviation from the colour filter's band-centre distance (pixels); ``column``,
+        the pole's centre column, undoes the off-axis stretch where the colour law was fitted so."""
         if self.colour_law is None:
             raise ValueError("this calibration has no colour law - calibrate with poles whose band distance is known")
+        if self.colour_off_axis_corrected and column is not None:
+            band_distance_px *= off_axis_cos(column, image_width, self.hfov_deg)
         per_cm = band_distance_px * self.reference_width_px / image_width / (geometry.band_height * 100)
         range_m = float(self.colour_law(per_cm))
         return range_m, range_m * self.colour_law.relative_std
@@ -124,8 +129,14 @@ def on_axis_size(width_px: float, height_px: float, column: float, image_width: 
     """A pole's box size as it would be on the optical axis at the same range. A pinhole camera images a pole at
     bearing t wider by 1 / cos^2 t (the image plane is flat) and taller by 1 / cos t (its depth is range * cos t):
     at the edge of the Nao's 56.3 deg view a pole looks 29 % wider, which a law fitted on-axis reads as ~20 % nearer."""
-    cos_t = math.cos(bearing_of_column(column, image_width, hfov_deg))
+    cos_t = off_axis_cos(column, image_width, hfov_deg)
     return width_px * cos_t * cos_t, height_px * cos_t
+
+
+def off_axis_cos(column: float, image_width: int, hfov_deg: float) -> float:
+    """cos of the bearing of an image column: a vertical length there (a pole's height, the distance between its
+    bands) times it is the length the pole would show on the optical axis at the same range."""
+    return math.cos(bearing_of_column(column, image_width, hfov_deg))
 
 
 def bearing_of_column(column: float, image_width: int, hfov_deg: float, linear: bool = False) -> float:

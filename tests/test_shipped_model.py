@@ -208,6 +208,20 @@ def test_shipped_calibration_ranges_a_pole_at_the_frame_edge_as_one_ahead(angle_
     assert _measured_range(detector, "yp", 3.0, angle_deg) == pytest.approx(ahead, rel=0.05)
 
 
+@pytest.mark.parametrize("code,range_m,angle_deg", [("bp", 1.0, 0.0), ("yp", 2.0, 20.0), ("pg", 3.0, -20.0)])
+def test_the_colour_filter_ranges_with_the_shipped_colour_law_when_given_no_calibration(code, range_m, angle_deg):
+    """`poles slam --frontend colour-filter` and `poles evaluate --model colour-filter` need no calibration file:
+    the shipped model's colour law is the colour filter's on the Nao, fitted on the band distances the filter itself
+    reads and taken to the optical axis, so a pole ahead and one at 20 deg both range right."""
+    from detector.slam.sequences import FrontEnd
+
+    frame, _ = _rendered_pole(code, range_m, angle_deg, seed=5)
+    (measurement,) = [m for m in FrontEnd("colour-filter").measurer()(frame) if m.signature == code]
+    assert measurement.range_m == pytest.approx(range_m, rel=0.025)
+    assert measurement.range_std == pytest.approx(measurement.range_m * LandmarkDetector().calibration.colour_law
+                                                  .relative_std)
+
+
 def _photographs() -> dict[str, np.ndarray]:
     """Real photographs installed with scikit-image, matplotlib, GTSAM and Ultralytics, BGR: none shows a pole, none
     was trained on (the renderer takes only scikit-image's grey brick, gravel and grass as wall and floor textures)."""

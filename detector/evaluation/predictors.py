@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from naoslam.colour_filter import ColourFilter
-from naoslam.detector import LandmarkDetector, mask_centre_column, rotated_box_of_mask
+from naoslam.detector import LandmarkDetector, mask_centre_column, rotated_box_of_mask, shipped_calibration
 from naoslam.measurement import RangeCalibration
 from naoslam.shipped import resolve_model
 
@@ -82,13 +82,14 @@ class TorchPredictor(Predictor):
 
 
 class ColourFilterPredictor(Predictor):
-    """The thesis's colour filter; every detection has confidence 1 and is located by its band-dividing point."""
+    """The thesis's colour filter; every detection has confidence 1 and is located by its band-dividing point.
+    Ranges come from ``calibration``'s colour law, else from the shipped model's (the colour filter's on the Nao)."""
 
     name = "colour-filter"
 
     def __init__(self, calibration: RangeCalibration | None = None):
         self.filter = ColourFilter()
-        self.calibration = calibration
+        self.calibration = calibration if calibration is not None else shipped_calibration()
 
     def __call__(self, frame: np.ndarray) -> Prediction:
         found = self.filter(frame)

@@ -114,7 +114,9 @@ def _measurement_errors(images: list[ImageEvaluation], conf: float, predictor: P
 
 def _range(pred, p: int, calibration, image_width: int) -> float | None:
     if pred.band_distances is not None:
-        return calibration.colour_range(pred.band_distances[p], image_width)[0] if calibration.colour_law else None
+        if calibration.colour_law is None:
+            return None
+        return calibration.colour_range(pred.band_distances[p], image_width, column=pred.centre_columns[p])[0]
     if pred.sizes[p] is None:
         return None
     return calibration.range_from_box(*pred.sizes[p], image_width, column=pred.centre_columns[p])[0]

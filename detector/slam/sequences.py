@@ -57,17 +57,19 @@ class FrontEnd:
 
     def _colour_filter(self):
         from naoslam.colour_filter import ColourFilter
+        from naoslam.detector import shipped_calibration
         from naoslam.measurement import bearing_of_column
 
-        calibration = self.calibration
+        calibration = self.calibration if self.calibration is not None else shipped_calibration()
         if calibration is None or calibration.colour_law is None:
-            raise ValueError("the colour filter needs --calibration with a colour law (from `poles calibrate`)")
+            raise ValueError("the colour filter needs a calibration with a colour law: `poles calibrate` fits one, "
+                             "pass its calibration.json as --calibration")
         colour_filter = ColourFilter()
 
         def measure(frame: np.ndarray, camera_pose: CameraPose | None = None) -> list[Measurement]:
             width, out = frame.shape[1], []
             for d in colour_filter(frame):
-                range_m, range_std = calibration.colour_range(d.band_distance_px, width)
+                range_m, range_std = calibration.colour_range(d.band_distance_px, width, column=d.centre_column)
                 out.append(Measurement(range_m, bearing_of_column(d.centre_column, width, calibration.hfov_deg),
                                        d.name, 1.0, range_std, calibration.bearing_std_rad, "colour filter"))
             return out
