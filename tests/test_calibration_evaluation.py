@@ -480,10 +480,12 @@ def test_evaluate_prints_each_models_own_threshold(synth_dataset, tiny_onnx, tmp
 
 
 def test_a_front_end_without_scores_has_no_best_threshold(synth_dataset, tmp_path, capsys):
-    """Every colour-filter detection has confidence 1, so every threshold counts the same: none is "best"."""
+    """Every colour-filter detection has confidence 1, so every threshold counts the same: none is "best", and
+    the counts' threshold reads "any" rather than a fallback 0.50 the colour filter never uses."""
     assert main(["evaluate", str(synth_dataset), "--model", "colour-filter", "--out", str(tmp_path / "eval")]) == 0
-    row = next(line for line in capsys.readouterr().out.splitlines() if "best-F1 threshold" in line)
-    assert re.search(r"any \(\d\.\d{3}\)", row)
+    printed = capsys.readouterr().out.splitlines()
+    assert re.search(r"any \(\d\.\d{3}\)", next(line for line in printed if "best-F1 threshold" in line))
+    assert re.search(r"│\s+any\s+│", next(line for line in printed if "threshold (the counts')" in line))
 
 
 def test_the_fit_plot_labels_its_log_axes_in_plain_numbers_at_1_2_and_5():

@@ -15,7 +15,7 @@ from detector.evaluation.by_width import recall_by_width, width_bin_names
 from detector.evaluation.counting import (ImageEvaluation, best_threshold, confidence_sweep, confusion_matrix,
                                           evaluate_image, map_scores, outcome, precision_recall, totals)
 from detector.evaluation.plots import plot_confusion, plot_per_image, plot_recall_by_width, plot_sweep, write_overlays
-from detector.evaluation.predictors import Predictor
+from detector.evaluation.predictors import ColourFilterPredictor, Predictor
 from naoslam.atomic import write_json
 from naoslam.camera import NAO_HFOV_DEG
 from naoslam.landmarks import CLASSES
@@ -141,7 +141,7 @@ _WIDTH_ROWS = {f"  poles {name} wide": (lambda m, i=i: _width_recall(m, i)) for 
 #: Rows of the comparison table: label and how to show it from metrics.json.
 TABLE_ROWS = {
     "images": lambda m: str(m["images"]),
-    "threshold (the counts')": lambda m: f"{m['conf']:.2f}",
+    "threshold (the counts')": lambda m: "any" if m["model"] == ColourFilterPredictor.name else f"{m['conf']:.2f}",
     "TP / FP / FN / TN": lambda m: f"{m['tp']} / {m['fp']} / {m['fn']} / {m['tn']}",
     "FP: class swaps / duplicates": lambda m: f"{m['class_swaps']} / {m['duplicates']}",
     "precision": lambda m: f"{100 * m['precision']:.1f} %",
