@@ -70,7 +70,7 @@ class RangeCalibration:
     extra: dict = field(default_factory=dict)
     #: The laws were fitted on on-axis sizes (:func:`on_axis_size`); calibrations from before 2026-11-24 were not.
     off_axis_corrected: bool = False
-    #: The colour law too was fitted on on-axis band distances; calibrations written before it was added (2026-11-25) were not.
+    #: The colour law too was fitted on on-axis band distances; calibrations from before 2026-11-25's fix were not.
     colour_off_axis_corrected: bool = False
     #: The network input width whose masks the laws were fitted to: a model's masks, and so its pixel sizes, change
     #: with it. None: label masks, or a calibration from before 2026-11-24 (not checked).

@@ -118,6 +118,18 @@ def test_a_recording_reads_odometry_written_with_spaces_after_the_commas(tmp_pat
         run_slam(recorded_sequence(frames, odometry, FrontEnd("colour-filter", calibration), 0.3)).poses.tolist()
 
 
+def test_the_colour_filter_is_refused_a_calibration_without_a_colour_law_before_any_frame(tmp_path, capsys):
+    """A box-only calibration (a model's, or one from before colour laws) cannot range the colour filter; leaving
+    --calibration out uses the shipped colour law."""
+    without_colour = tmp_path / "calibration.json"
+    box_only = RangeCalibration(PowerLaw(50, -1), PowerLaw(220, -1))
+    without_colour.write_text(json.dumps({"calibration": box_only.to_dict()}))
+    assert main(["slam", "--sim", "square", "--frontend", "colour-filter", "--calibration", str(without_colour),
+                 "--out", str(tmp_path / "slam")]) == 2
+    assert "--calibration has none: leave --calibration out" in capsys.readouterr().err
+    assert not (tmp_path / "slam").exists()
+
+
 def test_a_recording_without_its_odometry_file_is_named(tmp_path):
     frames, odometry = _recording(tmp_path)
     odometry.unlink()

@@ -62,8 +62,8 @@ class FrontEnd:
 
         calibration = self.calibration if self.calibration is not None else shipped_calibration()
         if calibration is None or calibration.colour_law is None:
-            raise ValueError("the colour filter needs a calibration with a colour law: `poles calibrate` fits one, "
-                             "pass its calibration.json as --calibration")
+            raise ValueError("the colour filter needs a colour law and --calibration has none: leave --calibration "
+                             "out to use the shipped one, or fit one with `poles calibrate` on poles of known range")
         colour_filter = ColourFilter()
 
         def measure(frame: np.ndarray, camera_pose: CameraPose | None = None) -> list[Measurement]:
