@@ -15,6 +15,10 @@ from naoslam.measurement import PowerLaw, RangeCalibration
 from naoslam.runner import run_slam
 
 
+#: The colour filter with a colour law of its own, as a recording's front end.
+COLOUR_FILTER = FrontEnd("colour-filter", RangeCalibration(PowerLaw(50, -1), PowerLaw(220, -1),
+                                                           colour_law=PowerLaw(6.2, -1.0, 0.03)))
+
 def test_slam_command_writes_metrics_map_path_plots_and_comparison(tmp_path, capsys):
     out = tmp_path / "slam"
     assert main(["slam", "--sim", "square", "--duration", "30", "--backend", "fej", "--lookalikes", "1",
@@ -88,8 +92,7 @@ def _recording(folder):
 
 def test_a_recording_merges_frames_and_odometry_with_the_offset(tmp_path):
     frames, odometry = _recording(tmp_path)
-    calibration = RangeCalibration(PowerLaw(50, -1), PowerLaw(220, -1), colour_law=PowerLaw(6.2, -1.0, 0.03))
-    sequence = recorded_sequence(frames, odometry, FrontEnd("colour-filter", calibration), time_offset_s=0.3)
+    sequence = recorded_sequence(frames, odometry, COLOUR_FILTER, time_offset_s=0.3)
     assert [round(e.t, 2) for e in sequence.events if e.measurements is not None] == [0.3, 0.8, 1.3]
     assert sum(e.control is not None for e in sequence.events) == 3
     result = run_slam(sequence)
@@ -102,20 +105,18 @@ def test_a_recording_with_a_bad_odometry_line_is_named(tmp_path, text, line):
     """By the line an editor shows: blank lines count."""
     frames, odometry = _recording(tmp_path)
     odometry.write_text(text)
-    calibration = RangeCalibration(PowerLaw(50, -1), PowerLaw(220, -1), colour_law=PowerLaw(6.2, -1.0, 0.03))
     with pytest.raises(ValueError, match=rf"odometry.csv:{line}: not finite numbers"):
-        recorded_sequence(frames, odometry, FrontEnd("colour-filter", calibration), 0.3)
+        recorded_sequence(frames, odometry, COLOUR_FILTER, 0.3)
 
 
 def test_a_recording_reads_odometry_written_with_spaces_after_the_commas(tmp_path):
     frames, odometry = _recording(tmp_path)
     plain = odometry.read_text()
     odometry.write_text(plain.replace(",", ", "))
-    calibration = RangeCalibration(PowerLaw(50, -1), PowerLaw(220, -1), colour_law=PowerLaw(6.2, -1.0, 0.03))
-    spaced = recorded_sequence(frames, odometry, FrontEnd("colour-filter", calibration), 0.3)
+    spaced = recorded_sequence(frames, odometry, COLOUR_FILTER, 0.3)
     odometry.write_text(plain)
     assert run_slam(spaced).poses.tolist() == \
-        run_slam(recorded_sequence(frames, odometry, FrontEnd("colour-filter", calibration), 0.3)).poses.tolist()
+        run_slam(recorded_sequence(frames, odometry, COLOUR_FILTER, 0.3)).poses.tolist()
 
 
 def test_the_colour_filter_is_refused_a_calibration_without_a_colour_law_before_any_frame(tmp_path, capsys):
@@ -133,9 +134,8 @@ def test_the_colour_filter_is_refused_a_calibration_without_a_colour_law_before_
 def test_a_recording_without_its_odometry_file_is_named(tmp_path):
     frames, odometry = _recording(tmp_path)
     odometry.unlink()
-    calibration = RangeCalibration(PowerLaw(50, -1), PowerLaw(220, -1), colour_law=PowerLaw(6.2, -1.0, 0.03))
     with pytest.raises(ValueError, match=r"odometry.csv: no such odometry file - .* header t,x,y,theta"):
-        recorded_sequence(frames, odometry, FrontEnd("colour-filter", calibration), 0.3)
+        recorded_sequence(frames, odometry, COLOUR_FILTER, 0.3)
 
 def test_a_recording_hands_each_frame_the_camera_pose_of_the_nearest_odometry_row(tmp_path, monkeypatch):
     frames, odometry = _recording(tmp_path)
