@@ -18,7 +18,7 @@ from naoslam.colour_filter import ColourDetection, ColourFilter
 from naoslam.detector import LandmarkDetector, mask_centre_column, rotated_box_of_mask
 from naoslam.ground import GroundView
 from naoslam.landmarks import PoleGeometry
-from naoslam.measurement import off_axis_cos, on_axis_size
+from naoslam.measurement import band_spacing_per_cm, on_axis_size
 
 
 @dataclass(frozen=True)
@@ -164,13 +164,12 @@ def as_arrays(samples: list[SizeSample], reference_width: int, hfov_deg: float |
     where it missed the pole)."""
     sizes = [on_axis_size(s.width_px, s.height_px, s.centre_column, s.image_width, hfov_deg)
              if hfov_deg is not None and s.centre_column is not None else (s.width_px, s.height_px) for s in samples]
-    bands = [s.band_distance_px * off_axis_cos(s.centre_column, s.image_width, hfov_deg)
-             if None not in (hfov_deg, s.centre_column, s.band_distance_px) else s.band_distance_px for s in samples]
+    colour = [band_spacing_per_cm(s.band_distance_px, s.image_width, reference_width, geometry, s.centre_column,
+                                  hfov_deg) if s.band_distance_px is not None else np.nan for s in samples]
     scale = np.array([reference_width / s.image_width for s in samples])
-    band = np.array([np.nan if b is None else b for b in bands])
     return {"range": np.array([s.range_m for s in samples]), "width": np.array([w for w, _ in sizes]) * scale,
             "height": np.array([h for _, h in sizes]) * scale, "partial": np.array([s.partial for s in samples]),
-            "colour": band * scale / (geometry.band_height * 100)}
+            "colour": np.array(colour)}
 
 
 def measures_law(columns: dict[str, np.ndarray], size: str) -> np.ndarray:

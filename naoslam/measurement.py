@@ -117,9 +117,8 @@ class RangeCalibration:
         the pole's centre column, undoes the off-axis stretch where the colour law was fitted so."""
         if self.colour_law is None:
             raise ValueError("this calibration has no colour law - calibrate with poles whose band distance is known")
-        if self.colour_off_axis_corrected and column is not None:
-            band_distance_px *= off_axis_cos(column, image_width, self.hfov_deg)
-        per_cm = band_distance_px * self.reference_width_px / image_width / (geometry.band_height * 100)
+        hfov_deg = self.hfov_deg if self.colour_off_axis_corrected else None
+        per_cm = band_spacing_per_cm(band_distance_px, image_width, self.reference_width_px, geometry, column, hfov_deg)
         range_m = float(self.colour_law(per_cm))
         return range_m, range_m * self.colour_law.relative_std
 
@@ -137,6 +136,16 @@ def off_axis_cos(column: float, image_width: int, hfov_deg: float) -> float:
     """cos of the bearing of an image column: a vertical length there (a pole's height, the distance between its
     bands) times it is the length the pole would show on the optical axis at the same range."""
     return math.cos(bearing_of_column(column, image_width, hfov_deg))
+
+
+def band_spacing_per_cm(band_distance_px: float, image_width: int, reference_width_px: int,
+                        geometry: PoleGeometry = PoleGeometry(), column: float | None = None,
+                        hfov_deg: float | None = None) -> float:
+    """The colour law's input: the colour filter's band-centre distance in px per cm of band spacing, at the
+    reference image width and, given the pole's column and the camera's ``hfov_deg``, on the optical axis."""
+    if column is not None and hfov_deg is not None:
+        band_distance_px *= off_axis_cos(column, image_width, hfov_deg)
+    return band_distance_px * reference_width_px / image_width / (geometry.band_height * 100)
 
 
 def bearing_of_column(column: float, image_width: int, hfov_deg: float, linear: bool = False) -> float:
