@@ -469,9 +469,13 @@ def _augment(args: argparse.Namespace) -> int:
 
 
 def _split(args: argparse.Namespace) -> int:
-    from detector.datasets.split import split_dataset
+    from detector.datasets.split import RATIO_ORDER, split_dataset
 
     counts = split_dataset(args.data, args.out, tuple(args.ratios), seed=args.seed, force=args.force)
+    total = sum(args.ratios)
+    if abs(total - 1) > 1e-6:  # the split divides by the sum; say so rather than let 0.7 0.2 0.2 pass unnoticed
+        shares = ", ".join(f"{split} {100 * r / total:.0f} %" for split, r in zip(RATIO_ORDER, args.ratios))
+        print(f"--ratios sum to {total:g}, so they were used as shares: {shares}")
     print("images per split: " + ", ".join(f"{k} {v}" for k, v in counts.items()))
     return 0
 

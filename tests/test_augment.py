@@ -210,6 +210,14 @@ def test_stratified_split_ratios_and_classes(synth_dataset, tmp_path):
         split_dataset(synth_dataset, tmp_path / "bad", (0.7, -0.2, 0.5))
 
 
+def test_split_says_when_the_ratios_are_rescaled(synth_dataset, tmp_path, capsys):
+    """0.7 0.2 0.2 (valid meant as 0.1) was divided by its sum, 1.1, without a word."""
+    assert main(["split", "--data", str(synth_dataset), "--out", str(tmp_path / "a"), "--ratios", "0.7", "0.2", "0.2"]) == 0
+    assert "sum to 1.1, so they were used as shares: train 64 %, test 18 %, valid 18 %" in capsys.readouterr().out
+    assert main(["split", "--data", str(synth_dataset), "--out", str(tmp_path / "b")]) == 0
+    assert "shares" not in capsys.readouterr().out
+
+
 def test_a_small_dataset_still_gets_a_validation_image(tmp_path):
     """Three images at 70/20/10 gave valid 0, which `poles train` then refused, telling the user to run split."""
     from detector.synth.generate import SynthJob, generate_dataset
