@@ -28,7 +28,6 @@ BACKENDS = {
 }
 
 
-
 #: The last row of the comparison on simulated walks: the batch smoother of :mod:`detector.slam.reference`.
 REFERENCE_ROW = "GTSAM smoother, oracle association (reference)"
 
@@ -48,7 +47,6 @@ def compare_backends(make_sequence, seeds: list[int], backends: dict[str, SlamCo
         if reference is not None:
             runs[REFERENCE_ROW].append(reference(sequence).metrics())
     return [_summary(name, metrics) for name, metrics in runs.items() if metrics]
-
 
 
 def _summary(name: str, runs: list[dict]) -> dict:

@@ -31,7 +31,6 @@ def write_outputs(result: SlamResult, sequence: Sequence, out: Path) -> dict:
     return metrics
 
 
-
 #: A map's title wraps at this many characters, so the back end's long label stays inside the 7-inch figure.
 MAP_TITLE_CHARS = 90
 
