@@ -175,6 +175,9 @@ def build_parser() -> argparse.ArgumentParser:
     synth.add_argument("--nominal-paint-share", type=float,
                        help="share of frames whose poles keep the nominal paint; the rest vary hue, saturation and "
                             f"value per band (default {SceneConfig.nominal_paint_share})")
+    synth.add_argument("--far-share", type=float,
+                       help="share of frames whose poles all stand %g-%g m away, 6-18 px wide at 640x480 "
+                            "(default 0: 0.4-9 m, log-uniform)" % SceneConfig.far_range_m)
     synth.add_argument("--preview", action="store_true", help="also write preview.png, a contact sheet with labels drawn")
     synth.add_argument("--workers", type=_whole_number(0), default=None, help="render processes (default: every core)")
     synth.add_argument("--force", action="store_true", help="replace --out if it exists")
@@ -411,10 +414,12 @@ def _synth(args: argparse.Namespace) -> int:
         len(walk_frame_steps(args.walk, args.seed)) if args.walk else DEFAULT_SYNTH_IMAGES)
     if images < 1:
         raise ValueError("--images must be at least 1")
-    if args.walk and args.nominal_paint_share is not None:
-        raise ValueError("--walk paints its poles as `poles slam` renders them: leave out --nominal-paint-share")
-    paint = {} if args.nominal_paint_share is None else {"nominal_paint_share": args.nominal_paint_share}
-    config = SceneConfig(**paint)
+    options = {name: value for name, value in (("nominal_paint_share", args.nominal_paint_share),
+                                               ("far_share", args.far_share)) if value is not None}
+    if args.walk and options:
+        flags = " and ".join("--" + name.replace("_", "-") for name in options)
+        raise ValueError(f"--walk places and paints its poles as `poles slam` renders them: leave out {flags}")
+    config = SceneConfig(**options)
     backgrounds = scan_backdrops(args.backgrounds) if args.backgrounds is not None else ()
     job = SynthJob(images, args.seed, *args.size, hfov_deg=args.hfov, calibration_shots=args.calibration_shots,
                    backgrounds=backgrounds, backdrop_share=args.backdrop_share, walk=args.walk, config=config)

@@ -18,7 +18,7 @@ from detector.datasets import load_dataset
 from detector.datasets.polygons import mask_to_polygon, polygon_to_mask
 from detector.synth.generate import CALIBRATION_RANGES_M, MIN_LABEL_PIXELS, SynthJob, generate_dataset, render_one
 from detector.synth.render import render_scene
-from detector.synth.scene import calibration_scene, sample_scene
+from detector.synth.scene import SceneConfig, calibration_scene, sample_scene
 from detector.synth.walk import frame_steps, render_walk, simulated_walk, walk_camera_poses, walk_frame_steps
 from naoslam.camera import PinholeCamera
 
@@ -73,6 +73,36 @@ def test_scenes_hold_negatives_several_poles_and_occlusion():
     assert min(fractions) < 0.6 and max(fractions) > 0.99
 
 
+def _pole_ranges(config: SceneConfig, scenes: int = 60) -> list[list[float]]:
+    """Each scene's pole distances (m) from the camera, for scenes drawn with ``config``."""
+    camera = PinholeCamera(320, 240)
+    ranges = []
+    for index in range(scenes):
+        scene = sample_scene(np.random.default_rng([8, index]), camera, config)
+        ranges.append([scene.pose.range_bearing_to(float(c.base[0]), float(c.base[1]))[0]
+                       for c in scene.cylinders if c.label])
+    return ranges
+
+
+def test_far_share_puts_every_pole_of_that_share_of_scenes_far_and_leaves_the_default_scenes_alone():
+    low, high = SceneConfig().far_range_m
+    every_far = [r for scene in _pole_ranges(SceneConfig(far_share=1.0)) for r in scene]
+    assert len(every_far) > 60 and low <= min(every_far) and max(every_far) <= high
+    default = _pole_ranges(SceneConfig())
+    assert min(r for scene in default for r in scene) < low  # near poles are common without it
+    assert _pole_ranges(SceneConfig(far_share=0.0)) == default  # no draw is made at 0: the same scenes
+    mixed = [scene for scene in _pole_ranges(SceneConfig(far_share=0.5), scenes=200) if scene]
+    all_far = sum(min(scene) >= low for scene in mixed) / len(mixed)
+    assert 0.5 <= all_far <= 0.8  # half the scenes by the option, plus default scenes that happen to be far
+
+
+@pytest.mark.parametrize("share", ["-0.1", "1.5"])
+def test_cli_refuses_a_far_share_outside_0_to_1(share, tmp_path, capsys):
+    assert main(["synth", "--far-share", share, "--images", "2", "--out", str(tmp_path / "s")]) == 2
+    assert f"--far-share {float(share)} must lie between 0 and 1" in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()
+
+
 def test_calibration_shots(tmp_path):
     out = generate_dataset(tmp_path / "calib", SynthJob(18, seed=1, calibration_shots=True), workers=2, progress=False)
     annotations = json.loads((out / "annotations.json").read_text())["images"]
@@ -125,12 +155,17 @@ def test_a_walk_refuses_more_frames_than_it_takes_and_other_scene_sources(tmp_pa
     assert "leave out --calibration-shots" in capsys.readouterr().err
     assert main(["synth", "--walk", "square", "--nominal-paint-share", "0", "--out", str(tmp_path / "w")]) == 2
     assert "leave out --nominal-paint-share" in capsys.readouterr().err
+    assert main(["synth", "--walk", "square", "--far-share", "0.3", "--out", str(tmp_path / "w")]) == 2
+    assert "leave out --far-share" in capsys.readouterr().err
 
 
 def test_cli_synth_check_and_preview(tmp_path, capsys):
     out = tmp_path / "s"
-    assert main(["synth", "--out", str(out), "--images", "12", "--seed", "1", "--size", "320x240", "--preview"]) == 0
+    assert main(["synth", "--out", str(out), "--images", "12", "--seed", "1", "--size", "320x240", "--preview",
+                 "--far-share", "0.25"]) == 0
     assert (out / "preview.png").stat().st_size > 10_000
+    generator = json.loads((out / "annotations.json").read_text())["generator"]
+    assert (generator["far_share"], generator["nominal_paint_share"]) == (0.25, 0.5)  # the options are on record
     assert main(["check", str(out)]) == 0
     assert main(["synth", "--out", str(out), "--images", "12"]) == 2
     assert "--force" in capsys.readouterr().err
@@ -173,7 +208,6 @@ def test_ray_cast_walls_floor_and_carpet_carry_photo_textures_around_their_paint
 
 
 def test_varied_paint_spreads_wide_but_every_band_still_passes_the_colour_filter_as_its_own_colour():
-    from detector.synth.scene import SceneConfig
     from naoslam.colour_filter import BITS, build_lookup
     camera, lookup = PinholeCamera(160, 120), build_lookup(bits=8)
     rng = np.random.default_rng(11)

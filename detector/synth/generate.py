@@ -236,6 +236,7 @@ def _describe(job: SynthJob) -> dict:
     return {"seed": job.seed, "images": job.images, "width": job.width, "height": job.height, "hfov_deg": job.hfov_deg,
             "focal_px": round(job.camera.focal_px, 3), "calibration_shots": job.calibration_shots, "walk": job.walk,
             "backgrounds": len(job.backgrounds), "backdrop_share": job.backdrop_share,
+            "nominal_paint_share": job.config.nominal_paint_share, "far_share": job.config.far_share,
             "pole": {"diameter_m": pole.diameter, "band_height_m": pole.band_height, "base_height_m": pole.base_height}}
 
 

@@ -39,10 +39,15 @@ class SceneConfig:
     #: Share of scenes whose poles keep the nominal paint (the rest vary it): fresh prints and the look a model
     #: already knows stay as common as worn, dull or off-hue ones.
     nominal_paint_share: float = 0.5
+    #: Share of scenes whose poles all stand within ``far_range_m`` (6-18 px wide at 640x480): far poles seen more
+    #: often in training. The draw is made only when the share is above 0, so the default frames stay the same.
+    far_share: float = 0.0
+    far_range_m: tuple[float, float] = (3.0, 9.0)
 
     def __post_init__(self) -> None:
-        if not 0.0 <= self.nominal_paint_share <= 1.0:
-            raise ValueError(f"--nominal-paint-share {self.nominal_paint_share} must lie between 0 and 1")
+        for option, share in (("--nominal-paint-share", self.nominal_paint_share), ("--far-share", self.far_share)):
+            if not 0.0 <= share <= 1.0:
+                raise ValueError(f"{option} {share} must lie between 0 and 1")
 
 
 @dataclass(frozen=True)
@@ -86,8 +91,9 @@ def sample_scene(rng: np.random.Generator, camera: PinholeCamera, config: SceneC
     occupied: list[tuple[float, float]] = []
     n_poles = 0 if rng.random() < config.p_no_pole else int(rng.integers(1, config.max_poles + 1))
     vary_paint = rng.random() >= config.nominal_paint_share
+    pole_range_m = config.far_range_m if config.far_share > 0 and rng.random() < config.far_share else config.range_m
     for _ in range(n_poles):
-        spot = _free_spot(rng, pose, camera, config, occupied, floor)
+        spot = _free_spot(rng, pose, camera, config, occupied, floor, pole_range_m)
         if spot is None:
             continue
         lean = None
@@ -135,9 +141,9 @@ def goal_posts(f: FieldGeometry) -> list[Cylinder]:
 
 
 def _free_spot(rng, pose: CameraPose, camera: PinholeCamera, config: SceneConfig, occupied: list,
-               floor: FloorMap | None = None) -> tuple[float, float] | None:
+               floor: FloorMap | None = None, range_m: tuple[float, float] | None = None) -> tuple[float, float] | None:
     half_view = camera.hfov_deg / 2 + config.view_margin_deg
-    low, high = np.log(config.range_m)
+    low, high = np.log(range_m or config.range_m)
     for _ in range(20):
         distance = float(np.exp(rng.uniform(low, high)))
         bearing = pose.yaw + math.radians(rng.uniform(-half_view, half_view))
