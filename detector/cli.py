@@ -416,9 +416,11 @@ def _synth(args: argparse.Namespace) -> int:
         raise ValueError("--images must be at least 1")
     options = {name: value for name, value in (("nominal_paint_share", args.nominal_paint_share),
                                                ("far_share", args.far_share)) if value is not None}
+    flags = " and ".join("--" + name.replace("_", "-") for name in options)
     if args.walk and options:
-        flags = " and ".join("--" + name.replace("_", "-") for name in options)
         raise ValueError(f"--walk places and paints its poles as `poles slam` renders them: leave out {flags}")
+    if args.calibration_shots and options:
+        raise ValueError(f"--calibration-shots stands one nominally painted pole at each set distance: leave out {flags}")
     config = SceneConfig(**options)
     backgrounds = scan_backdrops(args.backgrounds) if args.backgrounds is not None else ()
     job = SynthJob(images, args.seed, *args.size, hfov_deg=args.hfov, calibration_shots=args.calibration_shots,

@@ -157,6 +157,9 @@ def test_a_walk_refuses_more_frames_than_it_takes_and_other_scene_sources(tmp_pa
     assert "leave out --nominal-paint-share" in capsys.readouterr().err
     assert main(["synth", "--walk", "square", "--far-share", "0.3", "--out", str(tmp_path / "w")]) == 2
     assert "leave out --far-share" in capsys.readouterr().err
+    assert main(["synth", "--calibration-shots", "--far-share", "0.3", "--out", str(tmp_path / "w")]) == 2
+    assert "--calibration-shots stands one nominally painted pole at each set distance: leave out --far-share" \
+        in capsys.readouterr().err and not (tmp_path / "w").exists()
 
 
 def test_cli_synth_check_and_preview(tmp_path, capsys):
