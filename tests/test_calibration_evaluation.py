@@ -475,8 +475,15 @@ def test_evaluate_prints_each_models_own_threshold(synth_dataset, tiny_onnx, tmp
     """The table's title once gave the first model's threshold for every column; the shipped model counts at 0.65."""
     assert main(["evaluate", str(synth_dataset), "--model", str(tiny_onnx), "--model", "shipped",
                  "--out", str(tmp_path / "eval")]) == 0
-    row = next(line for line in capsys.readouterr().out.splitlines() if "threshold (the counts')" in line)
+    printed = capsys.readouterr().out.splitlines()
+    row = next(line for line in printed if "threshold (the counts')" in line)
     assert re.findall(r"\d\.\d\d", row) == [f"{FALLBACK_CONF:.2f}", f"{LandmarkDetector().stored_conf:.2f}"]
+    # The second column against the first, on the same frames, with its spread over them.
+    f1 = [json.loads((tmp_path / "eval" / name / "metrics.json").read_text())["f1"]
+          for name in (tiny_onnx.name, "poles-yolov8n-seg.onnx")]
+    versus = next(line for line in printed if "F1 - the first's" in line)
+    difference, low, high = map(float, re.findall(r"[+-]\d\.\d{3}", versus))
+    assert difference == pytest.approx(f1[1] - f1[0], abs=6e-4) and low <= difference <= high
 
 
 def test_a_front_end_without_scores_has_no_best_threshold(synth_dataset, tmp_path, capsys):

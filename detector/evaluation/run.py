@@ -14,6 +14,7 @@ from detector.datasets.truth import load_truth
 from detector.evaluation.by_width import recall_by_width, width_bin_names
 from detector.evaluation.counting import (ImageEvaluation, best_threshold, confidence_sweep, confusion_matrix,
                                           evaluate_image, map_scores, outcome, precision_recall, totals)
+from detector.evaluation.paired import f1_difference
 from detector.evaluation.plots import plot_confusion, plot_per_image, plot_recall_by_width, plot_sweep, write_overlays
 from detector.evaluation.predictors import ColourFilterPredictor, Predictor
 from naoslam.atomic import write_json
@@ -146,6 +147,7 @@ TABLE_ROWS = {
     "FP: class swaps / duplicates": lambda m: f"{m['class_swaps']} / {m['duplicates']}",
     "precision": lambda m: f"{100 * m['precision']:.1f} %",
     "recall": lambda m: f"{100 * m['recall']:.1f} %",
+    "F1": lambda m: f"{m['f1']:.3f}",
     **_WIDTH_ROWS,
     "localisation": _localisation,
     "mAP50 / mAP50-95": lambda m: f"{m['map50']:.3f} / {m['map50_95']:.3f}" if "map50" in m else "-",
@@ -173,4 +175,11 @@ def print_metrics(rows: list[dict]) -> None:
         table.add_column(m["model"], justify="right")
     for label, cell in TABLE_ROWS.items():
         table.add_row(label, *(cell(m) for m in rows))
+    if len(rows) > 1:
+        table.add_row("F1 - the first's (95 % over frames)", "-", *(_versus(rows[0], m) for m in rows[1:]))
     make_console().print(table)
+
+
+def _versus(first: dict, other: dict) -> str:
+    change = f1_difference(first["per_image"], other["per_image"])
+    return f"{change.difference:+.3f} ({change.low:+.3f} to {change.high:+.3f})"
