@@ -15,6 +15,8 @@ import numpy as np
 #: Resamples of the frames; enough for a 95 % interval's ends to settle to about 0.001 of F1.
 BOOTSTRAP_DRAWS = 2000
 BOOTSTRAP_SEED = 0
+#: Resamples drawn together: memory stays near 24 MB even for 10,000 frames.
+DRAWS_AT_ONCE = 100
 
 
 @dataclass(frozen=True)
@@ -33,10 +35,17 @@ def f1_difference(first: list[dict], second: list[dict], draws: int = BOOTSTRAP_
     if [row["image"] for row in first] != [row["image"] for row in second]:
         raise ValueError("the two evaluations were not made on the same frames: compare models on one split")
     a, b = _counts(first), _counts(second)
-    picks = np.random.default_rng(seed).integers(0, len(a), size=(draws, len(a)))
-    spread = _f1(b[picks].sum(axis=1)) - _f1(a[picks].sum(axis=1))
+    rng = np.random.default_rng(seed)
+    spread = np.concatenate([_resampled_differences(a, b, rng, min(DRAWS_AT_ONCE, draws - start))
+                             for start in range(0, draws, DRAWS_AT_ONCE)])
     low, high = np.percentile(spread, [2.5, 97.5])
     return F1Difference(float(_f1(b.sum(axis=0)) - _f1(a.sum(axis=0))), float(low), float(high))
+
+
+def _resampled_differences(a: np.ndarray, b: np.ndarray, rng: np.random.Generator, draws: int) -> np.ndarray:
+    """The F1 difference on ``draws`` resamples of the frames (rows of ``a`` and ``b``), the same frames for both."""
+    picks = rng.integers(0, len(a), size=(draws, len(a)))
+    return _f1(b[picks].sum(axis=1)) - _f1(a[picks].sum(axis=1))
 
 
 def _counts(per_image: list[dict]) -> np.ndarray:
