@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: Resamples of the frames; enough for a 95 % interval's ends to settle to about 0.001 of F1.
+#: Resamples of the frames: between seeds the interval's ends move by about 0.0003 of F1 (s.d.) on 400 frames, 0.002
+#: on 40.
 BOOTSTRAP_DRAWS = 2000
 BOOTSTRAP_SEED = 0
 #: Resamples drawn together: memory stays near 24 MB even for 10,000 frames.
