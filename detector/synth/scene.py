@@ -102,7 +102,7 @@ def sample_scene(rng: np.random.Generator, camera: PinholeCamera, config: SceneC
         scene.cylinders.append(pole(str(rng.choice(CLASSES)), *spot, config.pole, lean,
                                    paint=config.paint.draw(rng) if vary_paint else BAND_RGB))
     for _ in range(int(rng.integers(0, config.max_distractors + 1))):
-        spot = _free_spot(rng, pose, camera, config, occupied, floor)
+        spot = _free_spot(rng, pose, camera, config, occupied, floor, config.range_m)
         if spot is not None:
             _add_distractor(rng, scene, spot, pose)
     if goal_posts_in_view:
@@ -141,9 +141,10 @@ def goal_posts(f: FieldGeometry) -> list[Cylinder]:
 
 
 def _free_spot(rng, pose: CameraPose, camera: PinholeCamera, config: SceneConfig, occupied: list,
-               floor: FloorMap | None = None, range_m: tuple[float, float] | None = None) -> tuple[float, float] | None:
+               floor: FloorMap | None, range_m: tuple[float, float]) -> tuple[float, float] | None:
+    """A free floor spot in view, at a log-uniform distance within ``range_m``; None after 20 tries."""
     half_view = camera.hfov_deg / 2 + config.view_margin_deg
-    low, high = np.log(range_m or config.range_m)
+    low, high = np.log(range_m)
     for _ in range(20):
         distance = float(np.exp(rng.uniform(low, high)))
         bearing = pose.yaw + math.radians(rng.uniform(-half_view, half_view))
