@@ -23,9 +23,12 @@ CAPTION_SCALE, CAPTION_LINE_PX = 0.4, 13
 def draw_label(image_bgr: np.ndarray, text: str, origin: tuple[int, int], colour, scale: float = 0.45,
                thickness: int = 1) -> None:
     """Write ``text`` in ``colour`` at ``origin`` (its baseline's left end) with a dark edge, readable on any floor,
-    wall or pole."""
+    wall or pole; moved left or down as far as needed to stay whole inside the image (a pole at the border)."""
+    (text_w, text_h), _ = cv2.getTextSize(text, FONT, scale, thickness + 2)
+    x = max(0, min(origin[0], image_bgr.shape[1] - text_w - 1))
+    y = max(origin[1], text_h + 1)
     for ink, width in (((0, 0, 0), thickness + 2), (colour, thickness)):
-        cv2.putText(image_bgr, text, origin, FONT, scale, ink, width, cv2.LINE_AA)
+        cv2.putText(image_bgr, text, (x, y), FONT, scale, ink, width, cv2.LINE_AA)
 
 
 def draw_instances(image_bgr: np.ndarray, instances: list[Instance]) -> np.ndarray:

@@ -16,7 +16,7 @@ from detector.cli import main
 from detector.datasets import Instance, load_dataset
 from detector.datasets.polygons import clip_polygon, mask_to_polygon, polygon_area, polygon_to_mask
 from detector.datasets.split import split_dataset
-from detector.preview import CAPTION_SCALE, FONT, wrap_caption
+from detector.preview import CAPTION_SCALE, FONT, draw_label, wrap_caption
 from detector.synth.objects import pole
 from detector.synth.render import render_scene
 from detector.synth.scene import calibration_scene
@@ -160,6 +160,20 @@ def test_a_caption_is_wrapped_to_the_tile_never_cut(width):
     fits = [cv2.getTextSize(line, FONT, CAPTION_SCALE, 1)[0][0] <= width for line in lines]
     assert all(fit or " " not in line.strip(" +") for fit, line in zip(fits, lines))  # only a lone word overhangs
     assert len(lines) > 1
+
+
+def _ink_box_size(image: np.ndarray) -> tuple[int, int]:
+    rows, cols = np.nonzero(image.any(axis=2))
+    return cols.max() - cols.min() + 1, rows.max() - rows.min() + 1
+
+
+@pytest.mark.parametrize("origin", [(190, 50), (-30, 50), (20, 2)])
+def test_a_label_at_the_border_is_moved_inside_whole(origin):
+    text = "py 0.88 4.12 m -18.3 deg"
+    roomy, cramped = np.zeros((200, 600, 3), np.uint8), np.zeros((100, 200, 3), np.uint8)
+    draw_label(roomy, text, (100, 100), (50, 215, 240))
+    draw_label(cramped, text, origin, (50, 215, 240))
+    assert _ink_box_size(cramped) == _ink_box_size(roomy)
 
 
 def test_same_seed_same_output(synth_dataset, tmp_path):
