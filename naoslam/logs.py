@@ -57,7 +57,9 @@ def load_utias(folder: Path, range_std: float = 0.1, bearing_std: float = math.r
     folder = Path(folder)
     missing = [name for name in UTIAS_FILES if not (folder / name).is_file()]
     if missing:
-        raise FileNotFoundError(f"{folder}: not a UTIAS MRCLAM folder, missing {', '.join(missing)}")
+        logs_inside = sorted(sub.name for sub in folder.glob("*/") if all((sub / n).is_file() for n in UTIAS_FILES))
+        fix = f" - pass the folder of one log: {', '.join(logs_inside)}" if logs_inside else ""
+        raise FileNotFoundError(f"{folder}: not a UTIAS MRCLAM folder, missing {', '.join(missing)}{fix}")
     odometry = _table(folder / "Odometry.dat", 3)
     _require_time_order(folder / "Odometry.dat", odometry[:, 0])
     measurements = _table(folder / "Measurement.dat", 4)

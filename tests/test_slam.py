@@ -341,6 +341,18 @@ def test_utias_loader_names_a_bad_line(tmp_path):
         load_utias(tmp_path)
 
 
+def test_the_parent_of_utias_logs_is_refused_naming_the_logs_inside(tmp_path):
+    for log in ("dataset1", "dataset0"):
+        for name in ("Odometry.dat", "Measurement.dat", "Barcodes.dat", "Landmark_Groundtruth.dat"):
+            (tmp_path / log).mkdir(exist_ok=True)
+            (tmp_path / log / name).write_text("# header\n")
+    (tmp_path / "notes").mkdir()
+    with pytest.raises(FileNotFoundError, match=r"missing Odometry.dat.* - pass the folder of one log: dataset0, dataset1$"):
+        load_utias(tmp_path)
+    with pytest.raises(FileNotFoundError, match=r"missing Odometry.dat, Measurement.dat, Barcodes.dat, Landmark_Groundtruth.dat$"):
+        load_utias(tmp_path / "notes")
+
+
 def test_optitrack_reader_gives_planar_pose(tmp_path):
     csv = tmp_path / "take.csv"
     s = math.sin(math.radians(30) / 2)
