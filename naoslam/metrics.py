@@ -21,14 +21,21 @@ def pose_nees(pose: np.ndarray, pose_cov: np.ndarray, true_pose: np.ndarray) -> 
     return float(error @ np.linalg.solve(pose_cov, error))
 
 
-def align_se2(points: np.ndarray, reference: np.ndarray) -> np.ndarray:
-    """``points`` moved by the rotation and translation (no scale) that best fit them onto ``reference`` (Kabsch)."""
+def fit_se2(points: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rotation matrix and translation (no scale) that best fit ``points`` onto ``reference`` (Kabsch):
+    ``points @ rotation.T + translation``."""
     p, q = np.asarray(points, float), np.asarray(reference, float)
     p_mean, q_mean = p.mean(axis=0), q.mean(axis=0)
     u, _, vt = np.linalg.svd((p - p_mean).T @ (q - q_mean))
     d = np.sign(np.linalg.det(vt.T @ u.T))
     rotation = vt.T @ np.diag([1.0, d]) @ u.T
-    return (p - p_mean) @ rotation.T + q_mean
+    return rotation, q_mean - p_mean @ rotation.T
+
+
+def align_se2(points: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """``points`` moved by the rotation and translation (no scale) that best fit them onto ``reference``."""
+    rotation, translation = fit_se2(points, reference)
+    return np.asarray(points, float) @ rotation.T + translation
 
 
 def chi2_cdf(x: float, dof: int) -> float:

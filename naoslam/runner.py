@@ -10,7 +10,7 @@ import numpy as np
 from naoslam.ekf_slam import EkfSlam, SlamConfig
 from naoslam.localisation import EifLocalisation, EkfLocalisation
 from naoslam.measurement import Measurement
-from naoslam.metrics import align_se2, chi2_band, error_stats
+from naoslam.metrics import align_se2, chi2_band, error_stats, fit_se2
 from naoslam.motion import STRIDE_SCALE_STD, TURN_SCALE_STD, OdometryModel, VelocityModel
 from naoslam.observation import CHI2_2DOF_99, check_gate
 from naoslam.sim import Walk
@@ -100,14 +100,20 @@ class SlamResult:
                           "inside_band": float(np.mean((self.nis >= band[0]) & (self.nis <= band[1])))}
         return out
 
+    def truth_alignment(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The rotation and translation that scoring applies to the map of a run without robot truth (a log whose
+        start is its own origin), to draw path and map in the truth's frame; None where scoring aligns nothing."""
+        if self.true_poses is not None or not self.mapped:
+            return None
+        matched = match_to_truth(self.landmarks, self.landmarks_truth)
+        if len(matched) < 2:
+            return None
+        return fit_se2(np.array([self.landmarks[matched[k]] for k in matched]),
+                       np.array([self.landmarks_truth[k] for k in matched]))
 
-def score_map(landmarks: dict[str, np.ndarray], truth: dict[str, tuple[float, float]], align: bool) -> dict:
-    """Each true landmark against the nearest mapped landmark of its class (names ``yp``, ``yp#2``: class ``yp``).
 
-    Unmatched true landmarks are ``missing``; every other mapped landmark is a ``phantom``, reported with its
-    distance to the nearest true landmark. Without robot truth (``align``) the matched map is first moved by the
-    rigid transform that fits it best.
-    """
+def match_to_truth(landmarks: dict[str, np.ndarray], truth: dict[str, tuple[float, float]]) -> dict[str, str]:
+    """Each true landmark's nearest mapped landmark of its class (names ``yp``, ``yp#2``: class ``yp``), by name."""
     by_class: dict[str, list[str]] = {}
     for name in landmarks:
         by_class.setdefault(name.split("#")[0], []).append(name)
@@ -116,6 +122,17 @@ def score_map(landmarks: dict[str, np.ndarray], truth: dict[str, tuple[float, fl
         names = by_class.get(label, [])
         if names:
             matched[label] = min(names, key=lambda n: float(np.linalg.norm(landmarks[n] - position)))
+    return matched
+
+
+def score_map(landmarks: dict[str, np.ndarray], truth: dict[str, tuple[float, float]], align: bool) -> dict:
+    """Each true landmark against the nearest mapped landmark of its class (names ``yp``, ``yp#2``: class ``yp``).
+
+    Unmatched true landmarks are ``missing``; every other mapped landmark is a ``phantom``, reported with its
+    distance to the nearest true landmark. Without robot truth (``align``) the matched map is first moved by the
+    rigid transform that fits it best.
+    """
+    matched = match_to_truth(landmarks, truth)
     out: dict = {"landmarks_missing": sorted(set(truth) - set(matched))}
     if matched:
         estimated = np.array([landmarks[matched[k]] for k in matched])

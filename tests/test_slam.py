@@ -16,7 +16,7 @@ from naoslam.logs import load_optitrack, load_utias
 from naoslam.measurement import Measurement
 from naoslam.metrics import align_se2
 from naoslam.motion import OdometryModel, VelocityModel, wrap
-from naoslam.runner import Event, Sequence, merge_frames, run_slam, walk_sequence
+from naoslam.runner import Event, Sequence, SlamResult, merge_frames, run_slam, walk_sequence
 from naoslam.sim import SimConfig, simulate
 
 from tests.conftest import SHARED
@@ -318,6 +318,40 @@ def test_se2_alignment_undoes_a_rigid_motion():
     rotation = np.array([[math.cos(angle), -math.sin(angle)], [math.sin(angle), math.cos(angle)]])
     moved = truth @ rotation.T + [1.5, -2.0]
     assert np.allclose(align_se2(moved, truth), truth)
+
+
+def _result_of_a_moved_map(true_poses: np.ndarray | None) -> tuple[SlamResult, dict]:
+    """A run whose map is the truth turned by 0.7 rad, shifted, and one landmark 0.3 m off; poses on the map."""
+    truth = {"1": (0.0, 0.0), "2": (4.0, 0.0), "3": (0.0, 3.0), "4": (4.0, 3.0)}
+    angle, shift = 0.7, np.array([1.5, -2.0])
+    rotation = np.array([[math.cos(angle), -math.sin(angle)], [math.sin(angle), math.cos(angle)]])
+    landmarks = {name: np.array(xy) @ rotation.T + shift for name, xy in truth.items()}
+    landmarks["4"] = landmarks["4"] + [0.3, 0.0]
+    poses = np.array([[*landmarks["1"], 0.0], [*landmarks["2"], 0.0]])
+    return SlamResult("test", np.arange(2.0), poses, true_poses, None, landmarks, truth, None), truth
+
+
+def test_a_map_without_robot_truth_is_drawn_with_the_fit_it_is_scored_after():
+    result, truth = _result_of_a_moved_map(true_poses=None)
+    rotation, translation = result.truth_alignment()
+    moved = {name: xy @ rotation.T + translation for name, xy in result.landmarks.items()}
+    errors = [np.linalg.norm(moved[name] - truth[name]) for name in truth]
+    assert result.metrics()["landmark_error"]["mean"] == pytest.approx(np.mean(errors))
+    assert np.allclose(moved["1"], truth["1"], atol=0.2) and np.mean(errors) < 0.15
+    assert _result_of_a_moved_map(true_poses=np.zeros((2, 3)))[0].truth_alignment() is None
+
+
+def test_utias_map_plot_shows_the_estimate_fitted_onto_the_truth(tmp_path, monkeypatch):
+    import detector.figures
+    from detector.slam.outputs import plot_map
+
+    drawn = {}
+    monkeypatch.setattr(detector.figures, "save_figure", lambda fig, png: drawn.setdefault("axes", fig.axes[0]))
+    result, truth = _result_of_a_moved_map(true_poses=None)
+    plot_map(result, tmp_path / "map.png", "moved")
+    by_label = {c.get_label(): c.get_offsets() for c in drawn["axes"].collections}
+    crosses = by_label["estimated landmarks (fitted onto the truth)"]
+    assert np.abs(crosses[:3] - np.array([truth[name] for name in "123"])).max() < 0.2
 
 
 def test_utias_loader_parses_the_shared_log():

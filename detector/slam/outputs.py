@@ -36,31 +36,37 @@ MAP_TITLE_CHARS = 90
 
 
 def plot_map(result: SlamResult, png: Path, title: str) -> Path:
-    """True and estimated landmarks and paths (and odometry), like the thesis's map figures."""
+    """True and estimated landmarks and paths (and odometry), like the thesis's map figures. A run without robot
+    truth (a UTIAS log) is drawn moved by the rigid fit of its map onto the true landmarks, the one its landmark
+    error is scored after."""
     from detector.figures import plt, save_figure
 
+    alignment = result.truth_alignment()
+    rotation, translation = alignment if alignment else (np.eye(2), np.zeros(2))
+    moved = " (fitted onto the truth)" if alignment else ""
     fig, ax = plt.subplots(figsize=(7, 5), constrained_layout=True)
     if result.true_poses is not None:
         ax.plot(result.true_poses[:, 0], result.true_poses[:, 1], color="black", linewidth=1, label="true path")
     if result.odometry_poses is not None:
         ax.plot(result.odometry_poses[:, 0], result.odometry_poses[:, 1], color="grey", linestyle=":",
                 label="odometry")
-    ax.plot(result.poses[:, 0], result.poses[:, 1], color="tab:blue", linewidth=1, label="estimated path")
+    path = result.poses[:, :2] @ rotation.T + translation
+    ax.plot(path[:, 0], path[:, 1], color="tab:blue", linewidth=1, label=f"estimated path{moved}")
     truth = result.landmarks_truth
     if truth:
         ax.scatter(*np.array(list(truth.values())).T, marker="s", s=50, facecolors="none", edgecolors="black",
                    label="true landmarks")
     if result.landmarks:
-        estimated = np.array(list(result.landmarks.values()))
+        estimated = np.array(list(result.landmarks.values())) @ rotation.T + translation
         ax.scatter(*estimated.T, marker="x", s=50, color="tab:red",
-                   label="estimated landmarks" if result.mapped else "the map it localised on")
-        for name, (x, y) in result.landmarks.items():
+                   label=f"estimated landmarks{moved}" if result.mapped else "the map it localised on")
+        for name, (x, y) in zip(result.landmarks, estimated):
             ax.annotate(name, (x, y), textcoords="offset points", xytext=(4, 4), fontsize=7)
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_title(textwrap.fill(f"{result.label} - {title}", MAP_TITLE_CHARS), fontsize=9)
-    ax.legend(fontsize=7, loc="best")
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1))  # outside: never over a landmark
     ax.grid(alpha=0.3)
     return save_figure(fig, png)
 
