@@ -10,6 +10,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+import torch
 import yaml
 
 from detector.cli import main
@@ -281,11 +282,41 @@ def test_device_and_set_pass_through_to_ultralytics_typed(synth_dataset, tmp_pat
         raise Stop
 
     monkeypatch.setattr(YOLO, "train", capture)
+    monkeypatch.setattr(torch.cuda, "device_count", lambda: 2)  # a machine with two GPUs
     hyperparameters = parse_hyperparameters(["mosaic=0", "lr0=2e-4", "optimizer=AdamW"])
     with pytest.raises(Stop):
         train_model(synth_dataset, tmp_path / "run", TrainSettings(model="yolov8n-seg", device="0,1",
                                                                    hyperparameters=hyperparameters))
     assert (seen["device"], seen["mosaic"], seen["lr0"], seen["optimizer"]) == ("0,1", 0, 0.0002, "AdamW")
+
+
+@pytest.mark.parametrize("device, gpus, cuda_build, message", [
+    ("0", 0, "13.0", "sees no CUDA GPU - fix: leave --device out to train on the CPU, or check the GPU and its driver"),
+    ("cuda:0", 0, None, "is built without CUDA - fix: leave --device out to train on the CPU, or install a CUDA build"),
+    ("0,2", 2, "13.0", "sees GPUs 0-1 only - fix: name GPUs it sees, or leave --device out"),
+    ("mps", 0, None, "Apple's Metal (MPS) is not available to PyTorch here - fix: leave --device out"),
+])
+def test_a_device_that_is_not_there_is_refused_in_one_line_before_the_data_is_read(device, gpus, cuda_build, message,
+                                                                                   synth_dataset, tmp_path, capsys,
+                                                                                   monkeypatch):
+    import detector.training.train as training
+
+    monkeypatch.setattr(torch.cuda, "device_count", lambda: gpus)
+    monkeypatch.setattr(torch.version, "cuda", cuda_build)
+    monkeypatch.setattr(torch.backends.mps, "is_available", lambda: False)
+    monkeypatch.setattr(training, "open_dataset", lambda *a, **k: pytest.fail("the dataset was read first"))
+    assert main(["train", "--data", str(synth_dataset), "--out", str(tmp_path / "run"), "--device", device]) == 2
+    error = capsys.readouterr().err
+    assert f"poles train: --device {device}: " in error and message in error and len(error.strip().splitlines()) == 1
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("device", ["cpu", "0", "1", "0,1", "cuda:1", "-1"])
+def test_a_device_that_is_there_or_unknown_here_is_passed_on(device, monkeypatch):
+    from detector.training.devices import check_device
+
+    monkeypatch.setattr(torch.cuda, "device_count", lambda: 2)
+    check_device(device)
 
 
 @pytest.mark.parametrize("pair, message", [("lr=0.1", "not an Ultralytics training argument - did you mean lrf, lr0?"),

@@ -24,6 +24,7 @@ from detector.console import bars_as_log_lines
 from detector.training.cpu_threads import ThreadTuner
 from detector.datasets.intake import open_dataset, training_view
 from detector.training.curves import best_epoch, plot_training_curves
+from detector.training.devices import check_device
 
 #: Segmentation models that can be built from their YAML without a download.
 MODELS = ("yolov8n-seg", "yolov8s-seg", "yolov8m-seg")
@@ -123,6 +124,7 @@ def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | 
     not finish; a finished run is kept (pick a new ``out``).
     """
     out = Path(out).resolve()
+    check_device(settings.device)
     tuner = None
     if settings.device == "cpu":
         threads = use_all_cores(settings.threads)
