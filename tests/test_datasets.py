@@ -343,6 +343,22 @@ def test_check_warns_of_an_image_stored_turned_and_fix_writes_it_upright(dataset
     assert check_dataset(tmp_path / "fixed", progress=False).problems == []
 
 
+@pytest.mark.parametrize("squeeze_all", [True, False])
+def test_check_warns_once_when_every_frame_is_square_as_after_a_stretching_resize(squeeze_all, dataset_copy, capsys):
+    import cv2
+
+    images = sorted(dataset_copy.glob("*/images/*"))
+    for image in images if squeeze_all else images[1:]:
+        cv2.imwrite(str(image), cv2.resize(cv2.imread(str(image)), (640, 640)))
+    report = check_dataset(dataset_copy, progress=False)
+    squeezed = [p for p in report.problems if "square" in p.message]
+    assert report.errors == [] and len(squeezed) == squeeze_all
+    if squeeze_all:
+        assert squeezed[0].severity == "warning" and squeezed[0].path == dataset_copy
+        assert "(640x640)" in squeezed[0].message and "Resize" in squeezed[0].fix
+        assert main(["check", str(dataset_copy)]) == 0 and "1 warning(s)" in capsys.readouterr().out
+
+
 def test_write_dataset_refuses_to_overwrite(synth_dataset, tmp_path):
     out = write_dataset(tmp_path / "out", load_dataset(synth_dataset))
     with pytest.raises(FileExistsError, match="--force"):

@@ -51,7 +51,22 @@ def check_dataset(path: str | Path, progress: bool = True, renames: dict[str, st
             report.unreadable.add(sample.image)
         else:
             report.sizes[sample.split][f"{size[0]}x{size[1]}"] += 1
+    squeezed = _squeezed_frames(dataset.root, sum(report.sizes.values(), Counter()))
+    if squeezed:
+        dataset.problems.append(squeezed)
     return report
+
+
+def _squeezed_frames(root: Path, sizes: Counter) -> Problem | None:
+    """A warning when every image is square: the Nao's frames are 4:3, and a square export is most likely a
+    Roboflow "Resize: Stretch to" step, which makes poles taller than the robot sees them."""
+    if not sizes or any(width != height for width, height in (size.split("x") for size in sizes)):
+        return None
+    return Problem("warning", root, None, f"every image is square ({', '.join(sizes)}): the Nao's 4:3 frames "
+                   "stretched to a square (a Roboflow 'Resize: Stretch to' step) show poles 4/3 too tall for their "
+                   "width, so a model trained and ranges measured on them are off",
+                   "export again without the Resize step (Roboflow: Preprocessing); nothing if your camera's frames "
+                   "are square")
 
 
 def _image_size(sample: Sample, problems: list[Problem]) -> tuple[int, int] | None:
