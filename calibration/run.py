@@ -21,12 +21,13 @@ THESIS_HEIGHT_LAW = (209.16, -0.965)
 
 
 def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv: Path | None = None,
-                    plot: Path | None = None, embed: Path | None = None, force: bool = False,
+                    plot: Path | None = None, embed: Sequence[Path] = (), force: bool = False,
                     noise_data: Sequence[Path] = (), input_width: int | None = None) -> dict:
     """Fit from ``data`` and write ``out`` (calibration + report); returns what was written. ``noise_data``: frames
     of a walk with true ranges (e.g. ``poles synth --walk``), measured the same way, set the noise the filter is
-    told. ``input_width``: the ``model``'s input width on the robot (None: its own)."""
-    inputs = tuple(Path(path) for path in (data, truth_csv, model, embed, *noise_data) if path is not None)
+    told. ``input_width``: the ``model``'s input width on the robot (None: its own). ``embed``: ONNX models to store
+    the calibration in."""
+    inputs = tuple(Path(path) for path in (data, truth_csv, model, *embed, *noise_data) if path is not None)
     for output in (out, plot) if plot else (out,):
         check_output_file(output, force, inputs)
     if input_width is not None and model is None:
@@ -34,7 +35,8 @@ def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv:
     if embed:
         from export.onnx_export import read_info
 
-        read_info(embed)  # refuse a model that cannot take the calibration before anything is written
+        for target in embed:
+            read_info(target)  # refuse a model that cannot take the calibration before anything is written
     ranged = open_ranged(data, truth_csv)
     walks = [open_ranged(folder) for folder in noise_data]  # every input checked before any is measured
     detector = LandmarkDetector(model, conf=MEASURE_CONF, input_width=input_width) if model else None
@@ -47,8 +49,8 @@ def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv:
                               else "rendered walks with the shipped model at 640 px input (the default; "
                                    "--noise-data measures your own)")
     result = {"calibration": calibration.to_dict(), "report": report}
-    if embed:
-        embed_calibration(embed, calibration)
+    for target in embed:
+        embed_calibration(target, calibration)
     write_json(out, result)
     if plot:
         plot_fit(samples, calibration, plot, walk)

@@ -279,7 +279,9 @@ def build_parser() -> argparse.ArgumentParser:
     source.add_argument("--from-labels", action="store_true", help="measure the labelled masks (default)")
     calib.add_argument("--truth", type=Path, help="CSV image,class,range_m instead of annotations.json")
     calib.add_argument("--plot", type=Path, help="write the fit plot (PNG)")
-    calib.add_argument("--embed", type=Path, help="store the calibration in this ONNX model's metadata")
+    calib.add_argument("--embed", type=Path, action="append", default=[], metavar="MODEL",
+                       help="store the calibration in this ONNX model's metadata; repeat for each model that will "
+                            "use it, e.g. the FP32 model and its INT8 copy")
     _add_input_width_argument(calib, "measure --model's masks as the robot will run it: ")
     calib.add_argument("--noise-data", type=Path, action="append", default=[], metavar="WALK",
                        help="frames of a walk with true ranges (`poles synth --walk`, or your own robot's with "
@@ -543,7 +545,12 @@ def _calibrate(args: argparse.Namespace) -> int:
     result = run_calibration(args.data, args.out, args.model, args.truth, args.plot, args.embed, args.force,
                              args.noise_data, args.imgsz)
     print_calibration(result)
-    print(f"wrote {args.out}" + (f", {args.plot}" if args.plot else "") + (f"; embedded in {args.embed}" if args.embed else ""))
+    embedded = ", ".join(map(str, args.embed))
+    print(f"wrote {args.out}" + (f", {args.plot}" if args.plot else "")
+          + (f"; embedded in {embedded}" if embedded else ""))
+    for int8 in (m.with_name(f"{m.stem}-int8.onnx") for m in args.embed):
+        if int8.is_file() and int8 not in args.embed:
+            print(f"note: {int8}, its INT8 copy, was not given this calibration: add --embed {int8} to range with it")
     return 0
 
 

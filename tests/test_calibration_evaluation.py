@@ -240,15 +240,21 @@ def test_measurement_model_keeps_confident_detections_only(tiny_onnx, synth_data
         assert abs(m.bearing_rad) <= math.radians(56.3 / 2) + 1e-9 and m.signature in CLASSES
 
 
-def test_calibrate_command_writes_json_plot_and_embeds(calibration_shots, tiny_onnx, tmp_path):
-    model = tmp_path / "model.onnx"
-    model.write_bytes(tiny_onnx.read_bytes())
+def test_calibrate_command_writes_json_plot_and_embeds_in_every_model_named(calibration_shots, tiny_onnx, tmp_path,
+                                                                             capsys):
+    model, int8 = tmp_path / "model.onnx", tmp_path / "model-int8.onnx"  # as `poles export --int8` names them
+    for path in (model, int8):
+        path.write_bytes(tiny_onnx.read_bytes())
     out, plot = tmp_path / "calibration.json", tmp_path / "fit.png"
-    assert main(["calibrate", "--data", str(calibration_shots), "--out", str(out), "--plot", str(plot),
-                 "--embed", str(model)]) == 0
+    argv = ["calibrate", "--data", str(calibration_shots), "--out", str(out), "--plot", str(plot), "--force"]
+    assert main(argv + ["--embed", str(model)]) == 0
+    assert f"note: {int8}, its INT8 copy, was not given this calibration: add --embed {int8}" in capsys.readouterr().out
     assert cv2.imread(str(plot)) is not None
     calibration = load_calibration(out)
-    assert OnnxPredictor(model).calibration == calibration
+    assert OnnxPredictor(model).calibration == calibration and OnnxPredictor(int8).calibration is None
+    assert main(argv + ["--embed", str(model), "--embed", str(int8)]) == 0
+    assert "note:" not in capsys.readouterr().out
+    assert OnnxPredictor(model).calibration == OnnxPredictor(int8).calibration == load_calibration(out)
     assert main(["calibrate", "--data", str(calibration_shots), "--out", str(out)]) == 2  # exists, no --force
 
 
