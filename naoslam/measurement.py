@@ -187,6 +187,11 @@ class MeasurementModel:
                  linear_bearing: bool = False, pitch_std_rad: float = math.radians(0.5)):
         if range_method not in RANGE_METHODS:
             raise ValueError(f"range method {range_method!r} is not one of {', '.join(RANGE_METHODS)}")
+        if not isinstance(calibration, RangeCalibration):
+            raise TypeError(f"a MeasurementModel needs a RangeCalibration, not {type(calibration).__name__} (a model "
+                            "without one gives None as its calibration) - fix: `poles calibrate --model MODEL.onnx "
+                            "--embed MODEL.onnx`, or pass RangeCalibration.from_dict(json.load(file)['calibration']) of a "
+                            "calibration.json")
         self.calibration = calibration
         self.min_confidence = min_confidence
         self.range_method = range_method

@@ -226,6 +226,17 @@ def test_range_rule_uses_width_for_a_cut_pole_and_scales_with_resolution():
         calibration.range_from_box(25, 110, 640, "median")
 
 
+def test_a_model_without_calibration_is_refused_when_the_measurement_model_is_built(tiny_onnx):
+    """The robot's pattern ``MeasurementModel(detector.calibration)`` with a model that carries none used to fail
+    at the first detection with an AttributeError on None."""
+    from naoslam.detector import LandmarkDetector
+
+    detector = LandmarkDetector(tiny_onnx)
+    assert detector.calibration is None
+    with pytest.raises(TypeError, match=r"not NoneType .* - fix: `poles calibrate --model MODEL.onnx --embed"):
+        MeasurementModel(detector.calibration, min_confidence=detector.conf)
+
+
 def test_measurement_model_keeps_confident_detections_only(tiny_onnx, synth_dataset):
     from naoslam.detector import LandmarkDetector
 
