@@ -541,6 +541,7 @@ def _soup(args: argparse.Namespace) -> int:
 
 def _calibrate(args: argparse.Namespace) -> int:
     from calibration.run import print_calibration, run_calibration
+    from export.onnx_export import int8_path
 
     result = run_calibration(args.data, args.out, args.model, args.truth, args.plot, args.embed, args.force,
                              args.noise_data, args.imgsz)
@@ -548,7 +549,7 @@ def _calibrate(args: argparse.Namespace) -> int:
     embedded = ", ".join(map(str, args.embed))
     print(f"wrote {args.out}" + (f", {args.plot}" if args.plot else "")
           + (f"; embedded in {embedded}" if embedded else ""))
-    for int8 in (m.with_name(f"{m.stem}-int8.onnx") for m in args.embed):
+    for int8 in map(int8_path, args.embed):
         if int8.is_file() and int8 not in args.embed:
             print(f"note: {int8}, its INT8 copy, was not given this calibration: add --embed {int8} to range with it")
     return 0

@@ -23,6 +23,11 @@ from naoslam.model_info import METADATA_KEY, ModelInfo
 NAO_INPUT_HW = (480, 640)
 
 
+def int8_path(model: Path) -> Path:
+    """Where ``poles export --int8`` writes the INT8 copy of the FP32 ``model``: beside it, as ``<stem>-int8.onnx``."""
+    return Path(model).with_name(f"{Path(model).stem}-int8.onnx")
+
+
 def export_onnx(weights: Path, out: Path, input_hw: tuple[int, int] = NAO_INPUT_HW, force: bool = False,
                 extra: dict[str, Any] | None = None, dynamic: bool = False) -> Path:
     """Export ``weights`` (an Ultralytics segmentation .pt) to ONNX; returns ``out``.

@@ -10,7 +10,7 @@ import numpy as np
 
 from detector.datasets.intake import open_dataset
 from detector.datasets.io import check_output_file
-from export.onnx_export import NAO_INPUT_HW, export_onnx
+from export.onnx_export import NAO_INPUT_HW, export_onnx, int8_path
 from export.quantize import quantize_int8
 from export.verify import (FP32_TOLERANCE, INT8_TOLERANCE, compare, frontend_predict, median_latency_ms,
                            ultralytics_predict)
@@ -47,7 +47,7 @@ class ExportJob:
 
     @property
     def int8_path(self) -> Path:
-        return self.out.with_name(f"{self.out.stem}-int8.onnx")
+        return int8_path(self.out)
 
     @property
     def report_path(self) -> Path:

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from calibration.run import load_calibration
 from detector.training.starting_point import SHIPPED_WEIGHTS
-from export.onnx_export import read_info, write_metadata
+from export.onnx_export import int8_path, read_info, write_metadata
 from naoslam.atomic import atomic_path
 from naoslam.detector import valid_confidence
 from naoslam.shipped import OPERATING_CONF_KEY, shipped_path
@@ -51,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--calibration", type=Path, required=True, help="calibration.json from `poles calibrate`")
     parser.add_argument("--conf", type=float, required=True, help="operating confidence threshold")
     args = parser.parse_args(argv)
-    for path in ship(args.weights, args.onnx, args.onnx.with_name(f"{args.onnx.stem}-int8.onnx"), args.calibration,
+    for path in ship(args.weights, args.onnx, int8_path(args.onnx), args.calibration,
                      args.conf):
         print(f"{path}: {path.stat().st_size / 2**20:.1f} MiB")
     return 0

@@ -32,12 +32,6 @@ def fit_se2(points: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, np.n
     return rotation, q_mean - p_mean @ rotation.T
 
 
-def align_se2(points: np.ndarray, reference: np.ndarray) -> np.ndarray:
-    """``points`` moved by the rotation and translation (no scale) that best fit them onto ``reference``."""
-    rotation, translation = fit_se2(points, reference)
-    return np.asarray(points, float) @ rotation.T + translation
-
-
 def chi2_cdf(x: float, dof: int) -> float:
     """P(X <= x) for X ~ chi-square with integer ``dof`` (closed forms; no scipy on the robot)."""
     if x <= 0:

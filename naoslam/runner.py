@@ -10,7 +10,7 @@ import numpy as np
 from naoslam.ekf_slam import EkfSlam, SlamConfig
 from naoslam.localisation import EifLocalisation, EkfLocalisation
 from naoslam.measurement import Measurement
-from naoslam.metrics import align_se2, chi2_band, error_stats, fit_se2
+from naoslam.metrics import chi2_band, error_stats, fit_se2
 from naoslam.motion import STRIDE_SCALE_STD, TURN_SCALE_STD, OdometryModel, VelocityModel
 from naoslam.observation import CHI2_2DOF_99, check_gate
 from naoslam.sim import Walk
@@ -105,11 +105,7 @@ class SlamResult:
         start is its own origin), to draw path and map in the truth's frame; None where scoring aligns nothing."""
         if self.true_poses is not None or not self.mapped:
             return None
-        matched = match_to_truth(self.landmarks, self.landmarks_truth)
-        if len(matched) < 2:
-            return None
-        return fit_se2(np.array([self.landmarks[matched[k]] for k in matched]),
-                       np.array([self.landmarks_truth[k] for k in matched]))
+        return fit_to_truth(self.landmarks, self.landmarks_truth)
 
 
 def match_to_truth(landmarks: dict[str, np.ndarray], truth: dict[str, tuple[float, float]]) -> dict[str, str]:
@@ -125,6 +121,16 @@ def match_to_truth(landmarks: dict[str, np.ndarray], truth: dict[str, tuple[floa
     return matched
 
 
+def fit_to_truth(landmarks: dict[str, np.ndarray],
+                 truth: dict[str, tuple[float, float]]) -> tuple[np.ndarray, np.ndarray] | None:
+    """The rotation and translation that best fit the mapped landmarks matched to the truth onto it; None with
+    fewer than two matches."""
+    matched = match_to_truth(landmarks, truth)
+    if len(matched) < 2:
+        return None
+    return fit_se2(np.array([landmarks[matched[k]] for k in matched]), np.array([truth[k] for k in matched]))
+
+
 def score_map(landmarks: dict[str, np.ndarray], truth: dict[str, tuple[float, float]], align: bool) -> dict:
     """Each true landmark against the nearest mapped landmark of its class (names ``yp``, ``yp#2``: class ``yp``).
 
@@ -137,8 +143,10 @@ def score_map(landmarks: dict[str, np.ndarray], truth: dict[str, tuple[float, fl
     if matched:
         estimated = np.array([landmarks[matched[k]] for k in matched])
         reference = np.array([truth[k] for k in matched])
-        if align and len(matched) >= 2:
-            estimated = align_se2(estimated, reference)
+        fit = fit_to_truth(landmarks, truth) if align else None
+        if fit is not None:
+            rotation, translation = fit
+            estimated = estimated @ rotation.T + translation
         out["landmark_error"] = {**error_stats(np.linalg.norm(estimated - reference, axis=1)),
                                  "mapped": len(matched), "of": len(truth), "aligned": align}
     points = np.array(list(truth.values()), dtype=float)

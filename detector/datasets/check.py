@@ -45,24 +45,27 @@ def check_dataset(path: str | Path, progress: bool = True, renames: dict[str, st
         return CheckReport(Dataset(Path(path), [], exc.problems))
     report = CheckReport(dataset, sizes={split: Counter() for split in SPLITS})
     images = [s for s in dataset.samples if s.image is not None]
+    shapes: set[tuple[int, int]] = set()
     for sample in show_progress(images, "decoding images", "img", enabled=progress, leave=False):
         size = _image_size(sample, dataset.problems)
         if size is None:
             report.unreadable.add(sample.image)
         else:
             report.sizes[sample.split][f"{size[0]}x{size[1]}"] += 1
-    squeezed = _squeezed_frames(dataset.root, sum(report.sizes.values(), Counter()))
+            shapes.add(size)
+    squeezed = _squeezed_frames(dataset.root, shapes)
     if squeezed:
         dataset.problems.append(squeezed)
     return report
 
 
-def _squeezed_frames(root: Path, sizes: Counter) -> Problem | None:
+def _squeezed_frames(root: Path, shapes: set[tuple[int, int]]) -> Problem | None:
     """A warning when every image is square: the Nao's frames are 4:3, and a square export is most likely a
     Roboflow "Resize: Stretch to" step, which makes poles taller than the robot sees them."""
-    if not sizes or any(width != height for width, height in (size.split("x") for size in sizes)):
+    if not shapes or any(width != height for width, height in shapes):
         return None
-    return Problem("warning", root, None, f"every image is square ({', '.join(sizes)}): the Nao's 4:3 frames "
+    sizes = ", ".join(f"{width}x{height}" for width, height in sorted(shapes))
+    return Problem("warning", root, None, f"every image is square ({sizes}): the Nao's 4:3 frames "
                    "stretched to a square (a Roboflow 'Resize: Stretch to' step) show poles 4/3 too tall for their "
                    "width, so a model trained and ranges measured on them are off",
                    "export again without the Resize step (Roboflow: Preprocessing); nothing if your camera's frames "

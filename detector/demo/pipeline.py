@@ -196,6 +196,7 @@ def _export(weights: Path, onnx: Path, budget: Budget, data: Path) -> dict:
 def _calibrate(folder: Path, models: list[Path], budget: Budget, seed: int) -> dict:
     from calibration.run import embed_calibration, load_calibration, run_calibration
     from detector.synth.generate import SynthJob, generate_dataset
+    from export.onnx_export import int8_path
 
     shots = generate_dataset(folder / "shots", SynthJob(budget.calibration_shots, seed + 1, calibration_shots=True),
                              force=True)
@@ -207,7 +208,7 @@ def _calibrate(folder: Path, models: list[Path], budget: Budget, seed: int) -> d
         result = run_calibration(shots, folder / "calibration.json", plot=folder / "fit.png", force=True)
     calibration = load_calibration(folder / "calibration.json")
     for model in models:
-        for path in (model, model.with_name(f"{model.stem}-int8.onnx")):
+        for path in (model, int8_path(model)):
             embed_calibration(path, calibration)
     return {**result["report"], "plot": str(folder / "fit.png")}
 
@@ -220,6 +221,7 @@ def _evaluate(folder: Path, models: list[Path], data: Path, calibration_json: Pa
     from detector.datasets.io import output_folder
     from detector.evaluation.predictors import make_predictor
     from detector.evaluation.run import evaluate
+    from export.onnx_export import int8_path
     from naoslam.atomic import write_json
 
     calibration = load_calibration(calibration_json)
@@ -229,7 +231,7 @@ def _evaluate(folder: Path, models: list[Path], data: Path, calibration_json: Pa
             validation = evaluate(make_predictor(str(models[0])), data, tmp / "validation", "valid", 0.5)
             conf, conf_source = operating_threshold(validation, starting_conf)
         rows = []
-        candidates = [str(p) for m in models for p in (m, m.with_name(f"{m.stem}-int8.onnx"))] + ["colour-filter"]
+        candidates = [str(p) for m in models for p in (m, int8_path(m))] + ["colour-filter"]
         for model in candidates:
             predictor = make_predictor(model, calibration=calibration)
             metrics = evaluate(predictor, data, tmp / predictor.name, "test", conf)
