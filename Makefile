@@ -48,6 +48,11 @@ WALK_SEEDS = 10 11 12
 chain = w=$(2); i=0; for h in $(4); do i=$$((i+1)); \
 	$(BIN)/poles train --data $(1) --out $(3)-$$i --weights $$w $(POLE_TRAIN) --time $$h --seed $(5) || exit 1; \
 	w=$(3)-$$i/weights/last.pt; done
+# One short GPU fine-tune of v6 (stage 15's checkpoint) on 6,000 fresh frames: $(1) stage, $(2) seed, $(3) hours,
+# $(4) extra `poles synth` options.
+finetune_v6 = $(BIN)/poles synth --out runs/pole-data-$(1) --images 6000 --seed $(2) $(POLE_SYNTH) $(4) && \
+	$(BIN)/poles train --data runs/pole-data-$(1) --out runs/pole-model-$(1) --weights runs/pole-model-15/weights/best.pt \
+		$(POLE_TRAIN) --time $(3) --seed $(2)
 pole-model: $(STAMP)
 	# Stage 1 (model v1): from scratch on 8,000 frames (rendered at commit ae8c21a; later renderers draw other frames).
 	$(BIN)/poles synth --out runs/pole-data-1 --images 8000 --seed 2026 $(POLE_SYNTH)
@@ -82,15 +87,9 @@ pole-model: $(STAMP)
 		--out runs/pole-model-15/weights/best.pt --force
 	# Stages 16, 17 and 19: v6 fine-tuned with its own recipe on 6,000 fresh frames each, the last two with every pole
 	# of 30 % of the scenes 3-9 m away; each run as long as one 10-minute command on a lent GPU allowed.
-	$(BIN)/poles synth --out runs/pole-data-16 --images 6000 --seed 2043 $(POLE_SYNTH)
-	$(BIN)/poles train --data runs/pole-data-16 --out runs/pole-model-16 --weights runs/pole-model-15/weights/best.pt \
-		$(POLE_TRAIN) --time 0.1067 --seed 2043
-	$(BIN)/poles synth --out runs/pole-data-17 --images 6000 --seed 2044 $(POLE_SYNTH) --far-share 0.3
-	$(BIN)/poles train --data runs/pole-data-17 --out runs/pole-model-17 --weights runs/pole-model-15/weights/best.pt \
-		$(POLE_TRAIN) --time 0.0969 --seed 2044
-	$(BIN)/poles synth --out runs/pole-data-19 --images 6000 --seed 2045 $(POLE_SYNTH) --far-share 0.3
-	$(BIN)/poles train --data runs/pole-data-19 --out runs/pole-model-19 --weights runs/pole-model-15/weights/best.pt \
-		$(POLE_TRAIN) --time 0.0997 --seed 2045
+	$(call finetune_v6,16,2043,0.1067,)
+	$(call finetune_v6,17,2044,0.0969,--far-share 0.3)
+	$(call finetune_v6,19,2045,0.0997,--far-share 0.3)
 	# Model v7 (shipped): no training, the soup of v6 and stages 16, 17 and 19 in equal shares (rule v30).
 	mkdir -p $(FINAL)/weights
 	$(BIN)/poles soup --weights runs/pole-model-15/weights/best.pt runs/pole-model-16/weights/best.pt --alpha 0.5 \
