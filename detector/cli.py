@@ -10,6 +10,7 @@ from pathlib import Path
 from augment.config import OPERATIONS, AugmentConfig
 from detector.errors import run_command
 from detector.training.openmp_wait import sleep_while_waiting
+from detector.training.starting_point import run_checkpoint
 from detector.synth.scene import SceneConfig
 from naoslam.sim import PATHS, SimConfig
 
@@ -223,8 +224,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_dataset_argument(train, "dataset folder with data.yaml")
     train.add_argument("--out", type=Path, required=True, help="run folder (weights/best.pt, results.csv, curves)")
     train.add_argument("--model", help="yolov8n-seg (default), yolov8s-seg or yolov8m-seg")
-    train.add_argument("--weights", help="checkpoint to fine-tune from (default: the shipped pole model for "
-                                         "yolov8n-seg), or `scratch` to train from the architecture alone")
+    train.add_argument("--weights", help="checkpoint (or `poles train` run folder) to fine-tune from (default: the "
+                                         "shipped pole model for yolov8n-seg), or `scratch` to train from the architecture alone")
     train.add_argument("--epochs", type=_whole_number(1), default=100,
                        help="epochs to train (default 100; --time overrides)")
     train.add_argument("--time", type=float, help="train for this many hours instead (Ultralytics fits the epochs)")
@@ -249,8 +250,10 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--resume", action="store_true", help="continue the interrupted run in --out")
 
     export = sub.add_parser("export", help="export to ONNX (FP32, optional INT8), verified against PyTorch")
-    export.add_argument("--weights", type=Path, required=True, help="trained checkpoint (best.pt)")
-    export.add_argument("--out", type=Path, required=True, help="ONNX file to write (INT8 goes beside it as *-int8.onnx)")
+    export.add_argument("--weights", type=run_checkpoint, required=True,
+                        help="trained checkpoint (best.pt), or the `poles train` run folder that holds it")
+    export.add_argument("--out", type=Path, required=True,
+                        help="ONNX file to write, e.g. model.onnx (INT8 goes beside it as *-int8.onnx)")
     export.add_argument("--imgsz", type=int, nargs=2, default=(480, 640), metavar=("HEIGHT", "WIDTH"),
                         help="network input (default 480 640: the Nao's frames without padding)")
     export.add_argument("--data", type=Path, help="dataset whose valid/test frames verify the export "
@@ -265,8 +268,9 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("--force", action="store_true", help="replace existing output files")
 
     soup = sub.add_parser("soup", help="blend two checkpoints of one network: (1 - alpha) * first + alpha * second")
-    soup.add_argument("--weights", type=Path, nargs=2, required=True, metavar=("FIRST", "SECOND"),
-                      help="two checkpoints of one architecture, e.g. the shipped model's and your fine-tune of it")
+    soup.add_argument("--weights", type=run_checkpoint, nargs=2, required=True, metavar=("FIRST", "SECOND"),
+                      help="two checkpoints of one architecture (or `poles train` run folders), e.g. the shipped "
+                           "model's and your fine-tune of it")
     soup.add_argument("--alpha", type=float, required=True, help="the second checkpoint's share, 0-1")
     soup.add_argument("--out", type=Path, required=True, help="checkpoint to write (export it with `poles export`)")
     soup.add_argument("--force", action="store_true", help="replace an existing --out")
@@ -291,7 +295,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     evaluate = sub.add_parser("evaluate", help="precision, recall and mask IoU per image on held-out frames")
     evaluate.add_argument("--model", action="append",
-                          help="a .pt checkpoint, an .onnx model, `shipped`, `shipped-int8` or `colour-filter`; "
+                          help="a .pt checkpoint (or its `poles train` run folder), an .onnx model, `shipped`, "
+                               "`shipped-int8` or `colour-filter`; "
                                "repeat to compare several (default: the shipped model)")
     _add_dataset_argument(evaluate, "held-out frames with labels (dataset folder or COCO export)")
     evaluate.add_argument("--split", default="test", help="split to evaluate (default test)")

@@ -40,6 +40,9 @@ class ExportJob:
     dynamic: bool = False
 
     def __post_init__(self) -> None:
+        if self.out.suffix != ".onnx":
+            raise ValueError(f"--out {self.out}: name the ONNX file to write, ending in .onnx, e.g. "
+                             f"{self.out.with_name(self.out.name + '.onnx')}; nothing was written")
         if any(side < 32 or side % 32 for side in self.input_hw):
             raise ValueError(f"--imgsz {self.input_hw[0]} {self.input_hw[1]}: height and width must be positive "
                              "multiples of the stride 32 (the Nao's frames: 480 640)")

@@ -436,6 +436,15 @@ def test_evaluate_a_pytorch_checkpoint_like_its_onnx_export(tiny_weights, tiny_o
     assert abs(torch_metrics["tp"] + torch_metrics["fp"] - onnx_metrics["tp"] - onnx_metrics["fp"]) <= 2
 
 
+def test_evaluate_takes_a_train_run_folder_for_its_best_checkpoint(tiny_run, tmp_path):
+    from detector.evaluation.predictors import TorchPredictor, make_predictor
+
+    predictor = make_predictor(str(tiny_run))
+    assert isinstance(predictor, TorchPredictor) and predictor.name == "best.pt"
+    with pytest.raises(ValueError, match="give a .pt checkpoint \\(or its run folder\\)"):
+        make_predictor(str(tmp_path))  # a folder without weights/best.pt is not a run
+
+
 def test_a_models_calibration_holds_only_at_the_input_width_it_was_measured_at(calibration_shots, tmp_path, capsys):
     """A model's masks change with its input width, so its calibration records the width and is refused at another."""
     from calibration.run import embed_calibration

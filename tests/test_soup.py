@@ -56,3 +56,12 @@ def test_soup_refuses_different_networks_a_bad_alpha_and_its_own_inputs(tiny_run
         assert message in error and "Traceback" not in error
     assert _digest(second) == before
     assert not (tmp_path / "a.pt").exists() and not (tmp_path / "b.pt").exists()
+
+
+def test_soup_takes_a_train_run_folder_for_its_best_checkpoint(tiny_run, tmp_path):
+    """`poles train` prints its run folder; every command that reads a checkpoint takes that folder too."""
+    out = tmp_path / "soup.pt"
+    assert main(["soup", "--weights", str(SHIPPED_WEIGHTS), str(tiny_run), "--alpha", "1", "--out", str(out)]) == 0
+    best = _tensors(tiny_run / "weights" / "best.pt")
+    assert all(torch.equal(tensor, best[name]) for name, tensor in _tensors(out).items())
+    assert "1 * best.pt" in read_checkpoint(out)["train_args"]["blend"]

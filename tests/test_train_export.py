@@ -145,15 +145,26 @@ def test_run_export_writes_nothing_when_int8_cannot_be_made(tiny_weights, datase
     assert list(out.iterdir()) == []
 
 
-@pytest.mark.parametrize("where", ["the checkpoint", "inside the dataset"])
-def test_export_never_writes_over_its_inputs_even_with_force(where, tiny_weights, dataset_copy, tmp_path, capsys):
+def test_export_refuses_an_out_that_is_not_an_onnx_file(tiny_run, synth_dataset, tmp_path, capsys):
+    """`--out run/export` once wrote an ONNX file named `export` that `poles evaluate` then refused to read."""
+    argv = ["export", "--weights", str(tiny_run), "--data", str(synth_dataset), "--out", str(tmp_path / "export")]
+    assert main(argv) == 2
+    error = capsys.readouterr().err
+    assert f"name the ONNX file to write, ending in .onnx, e.g. {tmp_path / 'export.onnx'}" in error
+    assert "Traceback" not in error and list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("where, refusal", [("the checkpoint", "ending in .onnx"),
+                                            ("inside the dataset", "overlaps the input")])
+def test_export_never_writes_over_its_inputs_even_with_force(where, refusal, tiny_weights, dataset_copy, tmp_path,
+                                                             capsys):
     weights = tmp_path / "best.pt"
     shutil.copyfile(tiny_weights, weights)
     out = weights if where == "the checkpoint" else dataset_copy / "model.onnx"
     before = weights.read_bytes()
     argv = ["export", "--weights", str(weights), "--data", str(dataset_copy), "--out", str(out), "--force"]
     assert main(argv) == 2
-    assert "overlaps the input" in capsys.readouterr().err
+    assert refusal in capsys.readouterr().err
     assert weights.read_bytes() == before and not (dataset_copy / "model.onnx").exists()
 
 

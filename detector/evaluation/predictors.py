@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from detector.training.starting_point import run_checkpoint
 from naoslam.colour_filter import ColourFilter
 from naoslam.detector import LandmarkDetector, mask_centre_column, rotated_box_of_mask, shipped_calibration
 from naoslam.measurement import RangeCalibration
@@ -99,17 +100,19 @@ class ColourFilterPredictor(Predictor):
 
 
 def make_predictor(model: str, imgsz: int | None = None, calibration: RangeCalibration | None = None) -> Predictor:
-    """``colour-filter``, ``shipped`` / ``shipped-int8`` (the models in naoslam), a ``.pt`` checkpoint or an ``.onnx``.
+    """``colour-filter``, ``shipped`` / ``shipped-int8`` (the models in naoslam), a ``.pt`` checkpoint (or the run
+    folder that holds it) or an ``.onnx``.
 
     ``imgsz``: the network's input width (default: 640 for a checkpoint, an ONNX model's own).
     """
     if model == "colour-filter":
         return ColourFilterPredictor(calibration)
-    path = resolve_model(model)
+    path = run_checkpoint(resolve_model(model))
     if path.suffix == ".onnx":
         return OnnxPredictor(path, imgsz, calibration)
     if path.suffix != ".pt":
-        raise ValueError(f"--model {model!r}: give a .pt checkpoint, an .onnx model, `shipped` or `colour-filter`")
+        raise ValueError(f"--model {model!r}: give a .pt checkpoint (or its run folder), an .onnx model, `shipped` or "
+                         "`colour-filter`")
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such checkpoint")
     predictor = TorchPredictor(path, imgsz or 640)

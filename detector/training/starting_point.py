@@ -12,16 +12,23 @@ SHIPPED_ARCHITECTURE = "yolov8n-seg"
 SCRATCH = "scratch"
 
 
+def run_checkpoint(path: str | Path) -> Path:
+    """A ``poles train`` run folder stands for its ``weights/best.pt``; any other path is returned as given."""
+    best = Path(path) / "weights" / "best.pt"
+    return best if Path(path).is_dir() and best.is_file() else Path(path)
+
+
 def starting_point(model: str | None, weights: str | None) -> tuple[str, Path | None]:
     """The architecture and checkpoint a run starts from.
 
     No ``weights``: the shipped pole checkpoint when the architecture is its own (or not given), else the YAML.
-    ``weights="scratch"``: the YAML of ``model`` (default the shipped architecture). Otherwise the given checkpoint.
+    ``weights="scratch"``: the YAML of ``model`` (default the shipped architecture). Otherwise the given checkpoint
+    (or a run folder's best one).
     """
     if weights == SCRATCH:
         return model or SHIPPED_ARCHITECTURE, None
     if weights is not None:
-        return model or SHIPPED_ARCHITECTURE, Path(weights)
+        return model or SHIPPED_ARCHITECTURE, run_checkpoint(weights)
     if model in (None, SHIPPED_ARCHITECTURE):
         if not SHIPPED_WEIGHTS.is_file():
             raise FileNotFoundError(f"{SHIPPED_WEIGHTS}: the shipped pole checkpoint is missing - reinstall nao-poles "
