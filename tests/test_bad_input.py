@@ -110,7 +110,7 @@ COMMAND_ARGV: dict[str, Callable[[Path, Path], list[str]]] = {
     "evaluate": lambda tmp, data: ["evaluate", "--data", str(data), "--out", str(tmp / "out")],
     "calibrate": lambda tmp, data: ["calibrate", "--data", str(data), "--out", str(tmp / "out")],
     "export": lambda tmp, data: ["export", "--weights", str(tmp / "none.pt"), "--data", str(data),
-                                 "--out", str(tmp / "out")],
+                                 "--out", str(tmp / "out.onnx")],
 }
 
 DAMAGES: dict[str, Callable[[Path], object]] = {
