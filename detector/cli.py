@@ -225,7 +225,8 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--out", type=Path, required=True, help="run folder (weights/best.pt, results.csv, curves)")
     train.add_argument("--model", help="yolov8n-seg (default), yolov8s-seg or yolov8m-seg")
     train.add_argument("--weights", help="checkpoint (or `poles train` run folder) to fine-tune from (default: the "
-                                         "shipped pole model for yolov8n-seg), or `scratch` to train from the architecture alone")
+                                         "shipped pole model for yolov8n-seg), or `scratch` to train from the "
+                                         "architecture alone")
     train.add_argument("--epochs", type=_whole_number(1), default=100,
                        help="epochs to train (default 100; --time overrides)")
     train.add_argument("--time", type=float, help="train for this many hours instead (Ultralytics fits the epochs)")
