@@ -45,6 +45,17 @@ def _confidence(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{text!r}: {error}") from None
 
 
+def _number(text: str) -> float:
+    """An argparse type for a real number: ``float`` also takes ``nan`` and ``inf``, which no setting means."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
+    return value
+
+
 def _whole_number(minimum: int) -> Callable[[str], int]:
     """An argparse type for a count or a seed: a whole number, ``minimum`` or more."""
 
@@ -163,7 +174,7 @@ def build_parser() -> argparse.ArgumentParser:
     synth.add_argument("--images", type=int, help="number of images (default 500; with --walk, all its frames)")
     synth.add_argument("--seed", type=_whole_number(0), default=0, help="random seed: same seed, same dataset")
     synth.add_argument("--size", type=_size, default=(640, 480), help="image size WIDTHxHEIGHT (default 640x480)")
-    synth.add_argument("--hfov", type=float, default=56.3, help="horizontal field of view in degrees (default 56.3)")
+    synth.add_argument("--hfov", type=_number, default=56.3, help="horizontal field of view in degrees (default 56.3)")
     synth.add_argument("--calibration-shots", action="store_true",
                        help="one pole per image at known distances 0.5-5 m and angles 0, +-10, +-20 deg")
     synth.add_argument("--walk", choices=PATHS,
@@ -171,12 +182,12 @@ def build_parser() -> argparse.ArgumentParser:
                             "ranges: a walking robot's sightings for `poles calibrate --noise-data`")
     synth.add_argument("--backgrounds", type=Path,
                        help="folder of real robot-camera frames without poles: draw the poles over them")
-    synth.add_argument("--backdrop-share", type=float, default=1.0,
+    synth.add_argument("--backdrop-share", type=_number, default=1.0,
                        help="with --backgrounds, the fraction of frames drawn over them (default 1; the rest ray-cast)")
-    synth.add_argument("--nominal-paint-share", type=float,
+    synth.add_argument("--nominal-paint-share", type=_number,
                        help="share of frames whose poles keep the nominal paint; the rest vary hue, saturation and "
                             f"value per band (default {SceneConfig.nominal_paint_share})")
-    synth.add_argument("--far-share", type=float,
+    synth.add_argument("--far-share", type=_number,
                        help="share of frames whose poles all stand %g-%g m away, 6-18 px wide at 640x480 "
                             "(default 0: 0.4-9 m, log-uniform)" % SceneConfig.far_range_m)
     synth.add_argument("--preview", action="store_true", help="also write preview.png, a contact sheet with labels drawn")
@@ -206,7 +217,7 @@ def build_parser() -> argparse.ArgumentParser:
     augment.add_argument("--config", type=Path, help="YAML with strength limits, e.g. `rotate_deg: 15`, `box_blur_px: 1.5`")
     defaults = AugmentConfig()
     for name, text in STRENGTH_FLAGS.items():
-        augment.add_argument(f"--{name.replace('_', '-')}", type=float, default=None,
+        augment.add_argument(f"--{name.replace('_', '-')}", type=_number, default=None,
                              help=f"{text} (default {getattr(defaults, name)})")
     augment.add_argument("--preview", action="store_true", help="write augment_preview.png: originals beside copies")
     augment.add_argument("--workers", type=_whole_number(0), default=None)
@@ -215,7 +226,7 @@ def build_parser() -> argparse.ArgumentParser:
     split = sub.add_parser("split", help="re-split a dataset, stratified so every class reaches every split")
     _add_dataset_argument(split, "dataset folder to re-split (never written)")
     split.add_argument("--out", type=Path, required=True)
-    split.add_argument("--ratios", type=float, nargs=3, default=(0.7, 0.2, 0.1), metavar=("TRAIN", "TEST", "VALID"),
+    split.add_argument("--ratios", type=_number, nargs=3, default=(0.7, 0.2, 0.1), metavar=("TRAIN", "TEST", "VALID"),
                        help="fractions for train, test and valid (thesis: 0.7 0.2 0.1)")
     split.add_argument("--seed", type=_whole_number(0), default=0)
     split.add_argument("--force", action="store_true")
@@ -229,7 +240,7 @@ def build_parser() -> argparse.ArgumentParser:
                                          "architecture alone")
     train.add_argument("--epochs", type=_whole_number(1), default=100,
                        help="epochs to train (default 100; --time overrides)")
-    train.add_argument("--time", type=float, help="train for this many hours instead (Ultralytics fits the epochs)")
+    train.add_argument("--time", type=_number, help="train for this many hours instead (Ultralytics fits the epochs)")
     train.add_argument("--imgsz", type=_whole_number(32), default=640, help="training image size (default 640)")
     train.add_argument("--batch", type=_whole_number(1), default=8, help="images per batch (default 8)")
     train.add_argument("--patience", type=_whole_number(0), default=50,
@@ -272,7 +283,7 @@ def build_parser() -> argparse.ArgumentParser:
     soup.add_argument("--weights", type=run_checkpoint, nargs=2, required=True, metavar=("FIRST", "SECOND"),
                       help="two checkpoints of one architecture (or `poles train` run folders), e.g. the shipped "
                            "model's and your fine-tune of it")
-    soup.add_argument("--alpha", type=float, required=True, help="the second checkpoint's share, 0-1")
+    soup.add_argument("--alpha", type=_number, required=True, help="the second checkpoint's share, 0-1")
     soup.add_argument("--out", type=Path, required=True, help="checkpoint to write (export it with `poles export`)")
     soup.add_argument("--force", action="store_true", help="replace an existing --out")
 
@@ -327,7 +338,8 @@ def build_parser() -> argparse.ArgumentParser:
                       help="do not give the front end the camera's pose (rendered walk: the renderer's; recording: "
                            "camera_height,camera_pitch,camera_roll columns of the odometry CSV), so no ground-plane "
                            "gate and no foot-row range")
-    slam.add_argument("--time-offset", type=float, default=0.3, help="frame time shift for recordings (thesis +0.3 s)")
+    slam.add_argument("--time-offset", type=_number, default=0.3,
+                      help="frame time shift for recordings (thesis +0.3 s)")
     slam.add_argument("--backend", choices=("ekf", "fej", "oc"), default="oc",
                       help="linearisation: standard EKF, FEJ-EKF or OC-EKF (default, observability-constrained)")
     slam.add_argument("--association", choices=("nearest", "class"),
@@ -336,24 +348,24 @@ def build_parser() -> argparse.ArgumentParser:
     slam.add_argument("--no-self-calibration", action="store_true",
                       help="do not estimate the odometry's stride and turn scales")
     slam.add_argument("--min-views", type=int, default=3, help="agreeing sightings before a landmark enters the map")
-    slam.add_argument("--min-separation", type=float, default=0.5, metavar="METRES",
+    slam.add_argument("--min-separation", type=_number, default=0.5, metavar="METRES",
                       help="no landmark enters the map this close to a mapped one: two poles never stand that close "
                            "(default 0.5; 0: off)")
     slam.add_argument("--outlier-filter", action="store_true", help="drop measurements 0.4 m / pi/3 off prediction")
-    slam.add_argument("--gate", type=float, default=9.21,
+    slam.add_argument("--gate", type=_number, default=9.21,
                       help="Mahalanobis gate on every update (chi-square, 2 dof; default 9.21 = 99 %%)")
     slam.add_argument("--no-gate", action="store_true", help="accept every associated measurement (the thesis)")
-    slam.add_argument("--duration", type=float, help="seconds of the walk or log (sim default 90: once round and "
+    slam.add_argument("--duration", type=_number, help="seconds of the walk or log (sim default 90: once round and "
                                                      "one more side)")
-    slam.add_argument("--false-positive-rate", type=float, default=0.05,
+    slam.add_argument("--false-positive-rate", type=_number, default=0.05,
                       help="sim: share of frames with a one-off false positive")
-    slam.add_argument("--confusion-rate", type=float, default=0.0, help="sim: share of sightings given another class")
+    slam.add_argument("--confusion-rate", type=_number, default=0.0, help="sim: share of sightings given another class")
     slam.add_argument("--lookalikes", type=int, default=0,
                       help="sim: look-alike poles of a wrong class standing in the walk's area")
-    slam.add_argument("--frame-rate", type=float,
+    slam.add_argument("--frame-rate", type=_number,
                       help=f"sim: frames per second the front end gets through, of the camera's {SimConfig.frame_hz:g} "
                            "(default all; e.g. 2.5 or 1.25): what a slower CPU affords, on the same walk")
-    slam.add_argument("--odometry-bias", type=float, default=1.25,
+    slam.add_argument("--odometry-bias", type=_number, default=1.25,
                       help="sim: reported stride per true stride (default 1.25: the Nao over-reports)")
     slam.add_argument("--map", metavar="CSV",
                       help="localise on a known map instead of building one: a CSV class,x,y (metres, the field's "
@@ -512,8 +524,6 @@ def _train(args: argparse.Namespace) -> int:
     if args.resume and args.hyperparameters:
         raise ValueError("--set with --resume: a resumed run keeps the arguments it started with - drop --set")
     model, weights = (args.model or "", None) if args.resume else starting_point(args.model, args.weights)
-    if not args.resume:
-        print(f"starting from {weights or f'{model}.yaml (no pretrained weights)'}")
     threads = args.threads if isinstance(args.threads, int) else None
     settings = TrainSettings(model=model or "yolov8n-seg", epochs=args.epochs, imgsz=args.imgsz, batch=args.batch,
                              patience=args.patience, seed=args.seed, threads=threads,

@@ -69,8 +69,11 @@ class SimConfig:
         for name in ("false_positive_rate", "confusion_rate", "miss_rate"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise ValueError(f"--{name.replace('_', '-')} {getattr(self, name)} must lie in 0..1")
-        if self.duration_s <= 0 or self.stride_scale <= 0 or self.lookalikes < 0:
-            raise ValueError("--duration and --odometry-bias must be positive, --lookalikes not negative")
+        for flag, value in (("--duration", self.duration_s), ("--odometry-bias", self.stride_scale)):
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{flag} {value:g} must be a positive finite number")
+        if self.lookalikes < 0:
+            raise ValueError(f"--lookalikes {self.lookalikes} must be 0 or more")
         if self.front_end_hz is not None:
             every = self.frame_hz / self.front_end_hz if self.front_end_hz > 0 else 0.0
             if every < 1 or abs(every - round(every)) > 1e-6:

@@ -220,8 +220,9 @@ def test_stratified_split_ratios_and_classes(synth_dataset, tmp_path):
     for cls, n in images_per_class.items():
         if n >= 3:
             assert all(cls in classes for classes in per_split.values()), (cls, per_split)
-    with pytest.raises(ValueError, match="three non-negative"):
-        split_dataset(synth_dataset, tmp_path / "bad", (0.7, -0.2, 0.5))
+    for ratios in ((0.7, -0.2, 0.5), (0.7, float("nan"), 0.1)):
+        with pytest.raises(ValueError, match="three non-negative"):
+            split_dataset(synth_dataset, tmp_path / "bad", ratios)
 
 
 def test_split_says_when_the_ratios_are_rescaled(synth_dataset, tmp_path, capsys):

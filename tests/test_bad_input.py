@@ -486,6 +486,23 @@ def test_an_interrupted_command_leaves_nothing_and_says_one_line(signal_name, st
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("argv", [["slam", "--sim", "square", "--out", "{tmp}/out", "--duration", "nan"],
+                                  ["slam", "--sim", "square", "--out", "{tmp}/out", "--duration", "inf"],
+                                  ["slam", "--sim", "square", "--out", "{tmp}/out", "--odometry-bias", "nan"],
+                                  ["slam", "--sim", "square", "--out", "{tmp}/out", "--min-separation", "nan"],
+                                  ["slam", "--frames", "{tmp}", "--out", "{tmp}/out", "--time-offset", "nan"],
+                                  ["train", "{tmp}", "--out", "{tmp}/out", "--time", "nan"],
+                                  ["split", "{tmp}", "--out", "{tmp}/out", "--ratios", "0.7", "nan", "0.1"],
+                                  ["synth", "--out", "{tmp}/out", "--hfov", "inf"]])
+def test_a_number_that_is_not_finite_is_refused_before_anything_runs(argv, tmp_path, capsys):
+    """``float`` reads nan and inf: --duration inf ended in an OverflowError, --time nan after a trained epoch."""
+    with pytest.raises(SystemExit) as exited:
+        main([a.format(tmp=tmp_path) for a in argv])
+    assert exited.value.code == 2
+    assert "is not a finite number" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize("argv", [["predict", "--images", "{tmp}", "--out", "{tmp}/out", "--conf", "-1"],
                                   ["evaluate", "{tmp}", "--out", "{tmp}/out", "--conf", "2"],
                                   ["slam", "--sim", "square", "--out", "{tmp}/out", "--conf", "1.5"],

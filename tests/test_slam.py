@@ -443,3 +443,12 @@ def test_a_measurement_that_is_not_finite_or_has_no_range_is_refused(values):
     range_m, bearing, range_std, bearing_std = values
     with pytest.raises(ValueError, match="the range must be positive, the noise not negative, all four finite"):
         Measurement(range_m, bearing, "bp", 0.9, range_std, bearing_std)
+
+
+@pytest.mark.parametrize("kwargs, message", [({"duration_s": float("inf")}, "--duration inf must be a positive finite"),
+                                             ({"stride_scale": float("nan")}, "--odometry-bias nan must be a positive"),
+                                             ({"lookalikes": -1}, "--lookalikes -1 must be 0 or more")])
+def test_a_walk_names_the_setting_it_cannot_simulate(kwargs, message):
+    """An infinite walk ended in an OverflowError, an odometry bias of nan in a complaint about the first control."""
+    with pytest.raises(ValueError, match=message):
+        SimConfig(**kwargs)

@@ -46,7 +46,8 @@ def test_training_refuses_an_existing_run_and_a_finished_resume(tiny_run, synth_
 
 @pytest.mark.parametrize("kwargs, message", [({"model": "yolov9-seg"}, "is not one of"),
                                              ({"imgsz": 100}, "multiple of the model stride"),
-                                             ({"epochs": 0}, "at least 1")])
+                                             ({"epochs": 0}, "at least 1"),
+                                             ({"time_hours": float("nan")}, "positive number of hours")])
 def test_train_settings_refuse_bad_values(kwargs, message):
     with pytest.raises(ValueError, match=message):
         TrainSettings(**kwargs)

@@ -1,6 +1,7 @@
 """``poles split``: re-split a dataset (thesis: 70 train / 20 test / 10 valid), stratified by class."""
 from __future__ import annotations
 
+import math
 from collections import Counter
 from pathlib import Path
 
@@ -50,7 +51,7 @@ def stratified_assignment(samples: list[Sample], ratios: dict[str, float], seed:
 def split_dataset(data: str | Path, out: str | Path, ratios: tuple[float, float, float] = (0.7, 0.2, 0.1),
                   seed: int = 0, force: bool = False) -> dict[str, int]:
     """Write a copy of every image of ``data`` into new splits; returns images per split."""
-    if len(ratios) != 3 or min(ratios) < 0 or sum(ratios) <= 0:
+    if len(ratios) != 3 or not all(math.isfinite(r) and r >= 0 for r in ratios) or sum(ratios) <= 0:
         raise ValueError(f"--ratios needs three non-negative numbers (train test valid), got {list(ratios)}")
     dataset = open_dataset(data)
     samples = [s for s in dataset.samples if s.image is not None]

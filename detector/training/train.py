@@ -8,6 +8,7 @@ loaded from a local checkpoint, AMP checks and plots (which fetch a font) are of
 from __future__ import annotations
 
 import difflib
+import math
 import os
 import shutil
 from collections.abc import Iterator
@@ -63,7 +64,7 @@ class TrainSettings:
         for name in ("epochs", "imgsz", "batch"):
             if getattr(self, name) < 1:
                 raise ValueError(f"--{name} must be at least 1 (got {getattr(self, name)})")
-        if self.time_hours is not None and self.time_hours <= 0:
+        if self.time_hours is not None and not (math.isfinite(self.time_hours) and self.time_hours > 0):
             raise ValueError(f"--time {self.time_hours} must be a positive number of hours")
         if self.imgsz % 32:
             raise ValueError(f"--imgsz {self.imgsz} is not a multiple of the model stride 32 (try {self.imgsz // 32 * 32 or 32})")
@@ -139,6 +140,7 @@ def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | 
             raise FileNotFoundError(f"{weights}: no such checkpoint (nothing is downloaded: pass a local .pt)")
         if weights:
             read_checkpoint(Path(weights))  # a clear error for a file that is not a checkpoint
+        print(f"starting from {weights or f'{settings.model}.yaml (no pretrained weights)'}")
         dataset = open_dataset(data, progress=progress)
         _clear_unfinished_run(out)
         with _removed_unless_resumable(out):
