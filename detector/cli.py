@@ -56,6 +56,14 @@ def _number(text: str) -> float:
     return value
 
 
+def _positive_number(text: str) -> float:
+    """An argparse type for a finite number above 0 (a duration, a scale)."""
+    value = _number(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a number above 0")
+    return value
+
+
 def _whole_number(minimum: int) -> Callable[[str], int]:
     """An argparse type for a count or a seed: a whole number, ``minimum`` or more."""
 
@@ -355,8 +363,9 @@ def build_parser() -> argparse.ArgumentParser:
     slam.add_argument("--gate", type=_number, default=9.21,
                       help="Mahalanobis gate on every update (chi-square, 2 dof; default 9.21 = 99 %%)")
     slam.add_argument("--no-gate", action="store_true", help="accept every associated measurement (the thesis)")
-    slam.add_argument("--duration", type=_number, help="seconds of the walk or log (sim default 90: once round and "
-                                                     "one more side)")
+    slam.add_argument("--duration", type=_positive_number,
+                      help="seconds of the walk or UTIAS log (sim default 90: once round and one more side; a log: "
+                           "all of it)")
     slam.add_argument("--false-positive-rate", type=_number, default=0.05,
                       help="sim: share of frames with a one-off false positive")
     slam.add_argument("--confusion-rate", type=_number, default=0.0, help="sim: share of sightings given another class")
@@ -640,7 +649,7 @@ def _slam(args: argparse.Namespace) -> int:
     front_end = FrontEnd(frontend, calibration, args.conf, args.imgsz) if frontend else None
     if args.sim:
         def make(seed: int):
-            sim = SimConfig(path=args.sim, duration_s=args.duration or 90.0, seed=seed,
+            sim = SimConfig(path=args.sim, duration_s=90.0 if args.duration is None else args.duration, seed=seed,
                             false_positive_rate=args.false_positive_rate, confusion_rate=args.confusion_rate,
                             lookalikes=args.lookalikes, stride_scale=args.odometry_bias,
                             front_end_hz=args.frame_rate)
@@ -651,6 +660,9 @@ def _slam(args: argparse.Namespace) -> int:
     else:
         if not args.odometry:
             raise ValueError("--frames needs --odometry: a CSV t,x,y,theta of the same recording")
+        if args.duration is not None:
+            raise ValueError("--duration is for --sim and --utias: a recording runs whole - give --frames a folder "
+                             "of the part you want")
 
         def make(seed: int):
             return recorded_sequence(args.frames, args.odometry, front_end, args.time_offset,

@@ -54,6 +54,8 @@ def load_utias(folder: Path, range_std: float = 0.1, bearing_std: float = math.r
     """One robot's UTIAS MRCLAM log as a sequence: velocity controls between odometry stamps, frames of
     landmark measurements (measurements of other robots' barcodes are left out). No robot truth is needed:
     the map is scored after a rigid alignment to the landmark ground truth."""
+    if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0):
+        raise ValueError(f"--duration {duration_s:g} must be a positive number of seconds (None: the whole log)")
     folder = Path(folder)
     missing = [name for name in UTIAS_FILES if not (folder / name).is_file()]
     if missing:
@@ -68,7 +70,7 @@ def load_utias(folder: Path, range_std: float = 0.1, bearing_std: float = math.r
     subject_of_barcode = {int(b): int(s) for s, b in barcodes}
     landmarks = {str(int(s)): (x, y) for s, x, y in truth}
     start = odometry[0, 0]
-    end = start + duration_s if duration_s else math.inf
+    end = math.inf if duration_s is None else start + duration_s
     controls = [Event(t, np.array([v, w, t_next - t]))
                 for (t, v, w), t_next in zip(odometry[:-1], odometry[1:, 0]) if t < end]
     frames: dict[float, list[Measurement]] = {}

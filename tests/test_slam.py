@@ -376,6 +376,23 @@ def test_utias_loader_names_a_bad_line(tmp_path):
         load_utias(tmp_path)
 
 
+def test_a_utias_log_is_cut_at_the_duration_asked_and_a_duration_of_0_is_refused(tmp_path):
+    """``--duration 0`` ran the whole log and ``--duration -5`` ended in an IndexError."""
+    (tmp_path / "Odometry.dat").write_text("# t v w\n" + "".join(f"{t} 0.1 0.0\n" for t in range(10, 20)))
+    (tmp_path / "Measurement.dat").write_text("# t barcode r b\n12 5 1.0 0.1\n18 5 1.0 0.1\n")
+    (tmp_path / "Barcodes.dat").write_text("# subject barcode\n6 5\n")
+    (tmp_path / "Landmark_Groundtruth.dat").write_text("# subject x y\n6 1.0 0.0\n")
+    def controls_and_frames(sequence: Sequence) -> tuple[list[float], list[float]]:
+        return ([e.t for e in sequence.events if e.measurements is None],
+                [e.t for e in sequence.events if e.measurements is not None])
+
+    assert controls_and_frames(load_utias(tmp_path)) == ([float(t) for t in range(9)], [2.0, 8.0])
+    assert controls_and_frames(load_utias(tmp_path, duration_s=4)) == ([0.0, 1.0, 2.0, 3.0], [2.0])
+    for duration in (0.0, -5.0, math.nan):
+        with pytest.raises(ValueError, match="must be a positive number of seconds"):
+            load_utias(tmp_path, duration_s=duration)
+
+
 def test_the_parent_of_utias_logs_is_refused_naming_the_logs_inside(tmp_path):
     for log in ("dataset1", "dataset0"):
         for name in ("Odometry.dat", "Measurement.dat", "Barcodes.dat", "Landmark_Groundtruth.dat"):

@@ -47,11 +47,23 @@ def test_slam_command_writes_metrics_map_path_plots_and_comparison(tmp_path, cap
 @pytest.mark.parametrize("argv, message", [(["--min-views", "0"], "at least 1"), (["--gate", "-1"], "positive"),
                                           (["--min-separation", "-0.1"], "0 or more"),
                                           (["--frames", "x"], "--frames needs --odometry"),
+                                          (["--frames", "x", "--odometry", "o.csv", "--duration", "5"],
+                                           "--duration is for --sim and --utias"),
                                           (["--frame-rate", "3"], "give the camera's 5 Hz divided by a whole number")])
 def test_slam_command_refuses_bad_settings(argv, message, tmp_path, capsys):
     base = [] if "--frames" in argv else ["--sim", "square"]
     assert main(["slam", *base, *argv, "--out", str(tmp_path / "o")]) == 2
     assert message in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("source", [["--sim", "square"], ["--utias", "log"]])
+@pytest.mark.parametrize("duration", ["0", "-5"])
+def test_a_duration_not_above_0_is_refused_before_anything_runs(source, duration, tmp_path, capsys):
+    """``--duration 0`` ran the default walk or the whole log; on a log ``-5`` ended in an IndexError."""
+    with pytest.raises(SystemExit) as exited:
+        main(["slam", *source, "--duration", duration, "--out", str(tmp_path / "o")])
+    assert exited.value.code == 2 and "give a number above 0" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_an_unreadable_model_is_refused_before_the_walk_is_rendered(tmp_path, capsys, monkeypatch):
