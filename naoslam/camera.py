@@ -6,6 +6,7 @@ pixel (u, v) measured from the top-left corner of the image, so the centre of pi
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -21,6 +22,16 @@ class PinholeCamera:
     width: int = 640
     height: int = 480
     hfov_deg: float = NAO_HFOV_DEG
+
+    def __post_init__(self) -> None:
+        for name in ("width", "height"):
+            value = getattr(self, name)
+            if not (isinstance(value, numbers.Real) and math.isfinite(value) and value > 0):
+                raise ValueError(f"image {name} {value!r}: give the frame's size in pixels, width frame.shape[1] and "
+                                 "height frame.shape[0]")
+        if not (isinstance(self.hfov_deg, numbers.Real) and 0 < self.hfov_deg < 180):
+            raise ValueError(f"field of view {self.hfov_deg!r} deg: give the camera's horizontal field of view in "
+                             f"degrees, between 0 and 180 (the Nao's top camera: {NAO_HFOV_DEG})")
 
     @property
     def focal_px(self) -> float:

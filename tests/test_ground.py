@@ -96,6 +96,16 @@ def test_measurements_use_the_foot_row_and_distrust_a_hidden_foot():
         model.measure([_detection(truth.mask)], CAMERA.width, POSE)
 
 
+@pytest.mark.parametrize("width, height", [(0, None), (-1, None), (math.nan, None), (640, 0), (None, None)])
+def test_a_frame_size_that_is_not_one_is_refused_not_turned_into_a_range(width, height):
+    """A width of -1 measured every pole at 41.9 m and 90 degrees to the left; 0 ended in a ZeroDivisionError."""
+    model = MeasurementModel(RangeCalibration(PowerLaw(60.0, -1.0, 0.15), PowerLaw(200.0, -1.0, 0.15)), 0.5)
+    detection = _detection(_rendered(_ring([3.0])).poles[0].mask)
+    pose = None if height is None else POSE
+    with pytest.raises(ValueError, match="give the frame's size in pixels"):
+        model.measure([detection], width, pose, height)
+
+
 def test_a_pitched_cameras_pole_sizes_are_taken_to_what_a_level_camera_sees():
     """The range laws are fitted on a (nearly) level camera's sizes. Pitched 20 deg and rolled 3 deg, the camera
     sees the ring's poles up to 11 % taller than a level one (a pole 1.5 m away shorter); level_size gives the level
