@@ -28,8 +28,8 @@ from naoslam import observation
 from naoslam.association import CandidatePool, Hypothesis, choose
 from naoslam.measurement import Measurement
 from naoslam.metrics import pose_nees
-from naoslam.motion import (STRIDE_SCALE_STD, TURN_SCALE_STD, OdometryModel, VelocityModel, finite_control,
-                             scaled_step, wrap)
+from naoslam.motion import (STRIDE_SCALE_STD, TURN_SCALE_STD, OdometryModel, VelocityModel, checked_start,
+                             finite_control, scaled_step, wrap)
 
 OUTLIER_RANGE_M = 0.4
 OUTLIER_BEARING_RAD = math.pi / 3
@@ -112,6 +112,7 @@ class EkfSlam:
 
     def __init__(self, pose: np.ndarray, pose_cov: np.ndarray, motion: OdometryModel | VelocityModel,
                  config: SlamConfig = SlamConfig()):
+        pose, pose_cov = checked_start(pose, pose_cov)
         self.config = config
         self.motion = motion
         self.robot_size = 5 if config.self_calibrate else 3

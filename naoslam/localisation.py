@@ -24,8 +24,23 @@ from naoslam import observation
 from naoslam.association import Hypothesis, choose
 from naoslam.measurement import Measurement
 from naoslam.metrics import pose_nees
-from naoslam.motion import (STRIDE_SCALE_STD, TURN_SCALE_STD, OdometryModel, VelocityModel, finite_control,
-                            scaled_step, wrap)
+from naoslam.motion import (STRIDE_SCALE_STD, TURN_SCALE_STD, OdometryModel, VelocityModel, checked_start,
+                            finite_control, scaled_step, wrap)
+
+
+def checked_map(landmarks: dict[str, tuple[float, float]]) -> dict[str, np.ndarray]:
+    """Where the poles stand, by class, as float (x, y) arrays; a ValueError for an empty map or a pole that is not
+    two finite numbers (a localiser with nothing to correct on would follow the odometry without a word)."""
+    if not landmarks:
+        raise ValueError("the map holds no pole - give where at least one stands, e.g. {'bp': (1.5, -3.0)} (metres)")
+    out = {}
+    for name, xy in landmarks.items():
+        point = np.asarray(xy, dtype=float)
+        if point.shape != (2,) or not np.isfinite(point).all():
+            raise ValueError(f"map pole {name!r} at {np.asarray(xy).tolist()}: give its x and y as two finite numbers "
+                             "in metres")
+        out[name] = point
+    return out
 
 
 class _Localiser(ABC):
@@ -33,7 +48,8 @@ class _Localiser(ABC):
                  motion: OdometryModel | VelocityModel, gate: float | None,
                  odometry_scale_std: tuple[float, float] | None):
         observation.check_gate(gate)
-        self.map = {k: np.asarray(v, dtype=float) for k, v in landmarks.items()}
+        pose, pose_cov = checked_start(pose, pose_cov)
+        self.map = checked_map(landmarks)
         self.motion = motion
         self.gate = gate
         self.calibrates = odometry_scale_std is not None
@@ -154,6 +170,9 @@ class EifLocalisation(_Localiser):
     def __init__(self, pose: np.ndarray, pose_cov: np.ndarray, landmarks, motion, gate=observation.CHI2_2DOF_99,
                  odometry_scale_std: tuple[float, float] | None = (STRIDE_SCALE_STD, TURN_SCALE_STD)):
         super().__init__(pose, pose_cov, landmarks, motion, gate, odometry_scale_std)
+        if np.linalg.eigvalsh(self._prior_cov).min() <= 0:
+            raise ValueError("the information filter needs a start covariance with every variance above 0 (it "
+                             "inverts it) - give e.g. np.diag([0.01, 0.01, 0.01]) ** 2")
         self.omega = np.linalg.inv(self._prior_cov)
         self.xi = self.omega @ self._mean
 

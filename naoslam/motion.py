@@ -27,6 +27,28 @@ def finite_control(u: np.ndarray) -> np.ndarray:
     return control
 
 
+def checked_start(pose: np.ndarray, pose_cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The start pose (x, y, theta) and its 3x3 covariance as floats, or a ValueError that says what is wrong: a NaN
+    would spread to every estimate, and a covariance that is not symmetric with no negative variance makes every
+    uncertainty the filter reports meaningless."""
+    mean, cov = np.asarray(pose, dtype=float), np.asarray(pose_cov, dtype=float)
+    if mean.shape != (3,) or not np.isfinite(mean).all():
+        raise ValueError(f"start pose {np.asarray(pose).tolist()} is not three finite numbers (x m, y m, theta rad)")
+    if (cov.shape != (3, 3) or not np.isfinite(cov).all() or not np.allclose(cov, cov.T)
+            or np.linalg.eigvalsh(cov).min() < -1e-12 * max(1.0, float(np.trace(cov)))):
+        raise ValueError(f"start covariance of shape {cov.shape} is not a symmetric 3x3 matrix with no negative "
+                         "variance - give e.g. np.diag([0.01, 0.01, 0.01]) ** 2 (x m, y m, theta rad)")
+    return mean, cov
+
+
+def check_alphas(alphas: tuple[float, float, float, float]) -> None:
+    """A ValueError unless the control-noise coefficients are four finite numbers, none negative."""
+    values = np.asarray(alphas, dtype=float)
+    if values.shape != (4,) or not np.isfinite(values).all() or (values < 0).any():
+        raise ValueError(f"noise alphas {list(alphas)} must be four finite numbers, none negative (variance "
+                         "coefficients, e.g. (0.1, 0.02, 0.1, 0.02))")
+
+
 #: Prior standard deviations of the odometry scales (true motion per reported motion, mean 1) that SLAM and
 #: localisation estimate: a Nao's walk engine misreports its stride by tens of percent, its turns by less.
 STRIDE_SCALE_STD = 0.3
@@ -52,6 +74,9 @@ class OdometryModel:
     """Odometry as rot1, trans, rot2 between two odometry poses; alphas scale the control noise."""
 
     alphas: tuple[float, float, float, float] = (0.1, 0.02, 0.1, 0.02)
+
+    def __post_init__(self) -> None:
+        check_alphas(self.alphas)
 
     @staticmethod
     def control(previous: np.ndarray, current: np.ndarray) -> np.ndarray:
@@ -105,6 +130,9 @@ class VelocityModel:
     """
 
     alphas: tuple[float, float, float, float] = (0.1, 0.01, 0.01, 0.1)
+
+    def __post_init__(self) -> None:
+        check_alphas(self.alphas)
 
     @staticmethod
     def scaled(u: np.ndarray, stride: float, turn: float) -> np.ndarray:

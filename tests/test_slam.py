@@ -469,3 +469,37 @@ def test_a_walk_names_the_setting_it_cannot_simulate(kwargs, message):
     """An infinite walk ended in an OverflowError, an odometry bias of nan in a complaint about the first control."""
     with pytest.raises(ValueError, match=message):
         SimConfig(**kwargs)
+
+
+@pytest.mark.parametrize("pose, cov, message", [
+    (np.array([math.nan, 0.0, 0.0]), np.eye(3) * 1e-4, "start pose .* is not three finite numbers"),
+    (np.zeros(2), np.eye(3) * 1e-4, "start pose .* is not three finite numbers"),
+    (np.zeros(3), np.eye(2) * 1e-4, "start covariance of shape \\(2, 2\\)"),
+    (np.zeros(3), -np.eye(3) * 1e-4, "no negative variance"),
+    (np.zeros(3), np.array([[1e-4, 1e-3, 0.0], [0.0, 1e-4, 0.0], [0.0, 0.0, 1e-4]]), "not a symmetric")])
+@pytest.mark.parametrize("make", [lambda p, c: EkfSlam(p, c, OdometryModel()),
+                                  lambda p, c: EkfLocalisation(p, c, {"bp": (1.0, 0.0)}, OdometryModel()),
+                                  lambda p, c: EifLocalisation(p, c, {"bp": (1.0, 0.0)}, OdometryModel())],
+                         ids=["ekf slam", "ekf localisation", "eif localisation"])
+def test_a_start_that_is_not_one_is_refused_before_the_filter_runs(make, pose, cov, message):
+    """A NaN start pose or a negative variance was taken as given and spread to every estimate."""
+    with pytest.raises(ValueError, match=message):
+        make(pose, cov)
+
+
+@pytest.mark.parametrize("landmarks, message", [({}, "the map holds no pole"),
+                                                ({"bp": (math.nan, 0.0)}, "map pole 'bp'"),
+                                                ({"bp": (1.0, 0.0, 0.0)}, "two finite numbers")])
+def test_a_localisation_map_that_is_not_one_is_refused(landmarks, message):
+    """An empty map left the localiser to follow the odometry without a word."""
+    with pytest.raises(ValueError, match=message):
+        EkfLocalisation(np.zeros(3), np.eye(3) * 1e-4, landmarks, OdometryModel())
+
+
+def test_the_information_filter_needs_a_start_it_can_invert_and_noise_is_never_negative():
+    EkfLocalisation(np.zeros(3), np.zeros((3, 3)), {"bp": (1.0, 0.0)}, OdometryModel())  # a known start: fine
+    with pytest.raises(ValueError, match="every variance above 0"):
+        EifLocalisation(np.zeros(3), np.zeros((3, 3)), {"bp": (1.0, 0.0)}, OdometryModel())
+    for model in (OdometryModel, VelocityModel):
+        with pytest.raises(ValueError, match="none negative"):
+            model(alphas=(-0.1, 0.0, 0.0, 0.0))
