@@ -65,7 +65,7 @@ def load_calibration(path: Path) -> RangeCalibration:
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
         return RangeCalibration.from_dict(data.get("calibration", data))
-    except (UnicodeDecodeError, json.JSONDecodeError, AttributeError, KeyError, TypeError) as error:
+    except (ValueError, AttributeError, KeyError, TypeError) as error:  # ValueError: JSON, UTF-8, the laws' checks
         raise ValueError(f"{path}: not a calibration written by `poles calibrate` ({type(error).__name__}: {error}) "
                          "- write one with `poles calibrate`") from None
 

@@ -11,6 +11,7 @@ walking robot's noise), so the filter's measurement noise comes from data.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -23,6 +24,11 @@ from naoslam.landmarks import PoleGeometry
 RANGE_METHODS = ("rule", "width", "height", "fused")
 
 
+def _finite(*values) -> bool:
+    """Whether every value is a real, finite number."""
+    return all(isinstance(v, numbers.Real) and math.isfinite(v) for v in values)
+
+
 @dataclass(frozen=True)
 class PowerLaw:
     """``range_m = a * x ** b``, with the relative (log-space) standard deviation of its residuals."""
@@ -30,6 +36,11 @@ class PowerLaw:
     a: float
     b: float
     relative_std: float = 0.1
+
+    def __post_init__(self) -> None:
+        if not (_finite(self.a, self.b, self.relative_std) and self.a > 0 and self.relative_std >= 0):
+            raise ValueError(f"range law {self.a!r} * px ** {self.b!r} (relative s.d. {self.relative_std!r}): a must "
+                             "be above 0, b finite and the s.d. not negative - refit it with `poles calibrate`")
 
     def __call__(self, x: np.ndarray | float) -> np.ndarray | float:
         return self.a * np.power(np.asarray(x, dtype=float), self.b)
@@ -75,6 +86,14 @@ class RangeCalibration:
     #: The network input width whose masks the laws were fitted to: a model's masks, and so its pixel sizes, change
     #: with it. None: label masks, or a calibration from before 2026-11-24 (not checked).
     input_width: int | None = None
+
+    def __post_init__(self) -> None:
+        if not (_finite(self.reference_width_px, self.bearing_std_rad, self.hfov_deg) and self.reference_width_px > 0
+                and self.bearing_std_rad >= 0 and 0 < self.hfov_deg < 180):
+            raise ValueError(f"calibration for {self.reference_width_px!r} px wide frames, bearing s.d. "
+                             f"{self.bearing_std_rad!r} rad, field of view {self.hfov_deg!r} deg: the width must be "
+                             "above 0, the s.d. not negative and the field of view 0-180 deg - refit it with `poles "
+                             "calibrate`")
 
     def to_dict(self) -> dict:
         return asdict(self)

@@ -234,6 +234,18 @@ def _calibrate_truth(row: str, named: str) -> Callable:
     return build
 
 
+def _calibration_with_law(tmp: Path, a: float) -> Path:
+    """A calibration.json whose width law is ``a * px ** -1``: as `poles calibrate` writes it, the number aside."""
+    from naoslam.measurement import PowerLaw, RangeCalibration
+
+    data = RangeCalibration(PowerLaw(60.0, -1.0, 0.1), PowerLaw(200.0, -1.0, 0.1)).to_dict()
+    data["width_law"]["a"] = a
+    path = tmp / "inputs" / "c.json"
+    path.parent.mkdir(exist_ok=True)
+    path.write_text(json.dumps({"calibration": data}))
+    return path
+
+
 def _garbage(tmp: Path, name: str) -> Path:
     path = tmp / "inputs" / name
     path.parent.mkdir(exist_ok=True)
@@ -371,6 +383,14 @@ OTHER_CASES = [
     _plain("evaluate: garbage --calibration", lambda tmp, d: (
         ["evaluate", str(d), "--model", "colour-filter", "--calibration", str(_garbage(tmp, "c.json")), "--out",
          str(tmp / "out")], tmp / "inputs", "c.json")),
+    _plain("slam: --calibration with a negative range law", lambda tmp, d: (
+        ["slam", "--sim", "square", "--frontend", "colour-filter", "--calibration",
+         str(_calibration_with_law(tmp, -60.0)), "--out", str(tmp / "out")], tmp / "inputs",
+        "c.json: not a calibration")),
+    _plain("slam: --calibration with a NaN range law", lambda tmp, d: (
+        ["slam", "--sim", "square", "--frontend", "colour-filter", "--calibration",
+         str(_calibration_with_law(tmp, float("nan"))), "--out", str(tmp / "out")], tmp / "inputs",
+        "a must be above 0")),
     _plain("evaluate: --calibration of another kind", lambda tmp, d: (
         ["evaluate", str(d), "--model", "colour-filter", "--calibration", str(_truth_csv(tmp, '{"a": 1}')), "--out",
          str(tmp / "out")], tmp, "ranges.csv: not a calibration")),
