@@ -27,6 +27,8 @@ def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv:
     of a walk with true ranges (e.g. ``poles synth --walk``), measured the same way, set the noise the filter is
     told. ``input_width``: the ``model``'s input width on the robot (None: its own). ``embed``: ONNX models to store
     the calibration in."""
+    if plot is not None and Path(plot).suffix.lower() != ".png":
+        raise ValueError(f"--plot {plot}: the fit plot is written as PNG - name it *.png; nothing was written")
     inputs = tuple(Path(path) for path in (data, truth_csv, model, *embed, *noise_data) if path is not None)
     for output in (out, plot) if plot else (out,):
         check_output_file(output, force, inputs)

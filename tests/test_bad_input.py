@@ -287,9 +287,10 @@ def _slam_into_the_recording(tmp: Path) -> tuple[list[str], Path, str]:
 
 
 def _plot_over_a_frame(tmp: Path, data: Path) -> tuple[list[str], Path, str]:
-    """``poles calibrate --plot --force`` naming one of the dataset's own frames."""
+    """``poles calibrate --plot --force`` naming a PNG beside the dataset's own frames."""
     frame = first_image(data)
-    return COMMAND_ARGV["calibrate"](tmp, data) + ["--plot", str(frame), "--force"], data, "overlaps the input"
+    return (COMMAND_ARGV["calibrate"](tmp, data) + ["--plot", str(frame.with_suffix(".png")), "--force"], data,
+            "overlaps the input")
 
 
 def _synth_into_the_backgrounds(tmp: Path) -> tuple[list[str], Path, str]:
@@ -399,6 +400,9 @@ OTHER_CASES = [
         "none.json: no such calibration file")),
     _plain("evaluate: unknown model kind", lambda tmp, d: (["evaluate", "--model", "model.h5", "--data", str(d),
                                                             "--out", str(tmp / "out")], d, "model.h5")),
+    _plain("calibrate: --plot not a PNG", lambda tmp, d: (
+        ["calibrate", "--data", str(d), "--out", str(tmp / "out"), "--plot", str(tmp / "fit.txt")], d,
+        "name it *.png")),
     _plain("calibrate: range inf", _calibrate_truth("{image},{cls},inf", "ranges.csv:2")),
     _plain("calibrate: range 0", _calibrate_truth("{image},{cls},0", "ranges.csv:2")),
     _plain("calibrate: range not a number", _calibrate_truth("{image},{cls},far", "ranges.csv:2")),
@@ -423,7 +427,7 @@ OTHER_CASES = [
                                                                          frame="left.jpg")),
     _plain("slam: a frame that cannot be decoded", lambda tmp, d: _undecodable_frame(tmp)),
     _plain("slam: --out is the recording's folder", lambda tmp, d: _slam_into_the_recording(tmp)),
-    _plain("calibrate: --plot is a frame of the dataset", _plot_over_a_frame),
+    _plain("calibrate: --plot among the dataset's frames", _plot_over_a_frame),
     _plain("train: the Roboflow zip, not its folder", _roboflow_zip),
     _plain("predict: --out is the input video", lambda tmp, d: _video_onto_itself(tmp)),
     _plain("predict: the contact sheet's name is taken", lambda tmp, d: _sheet_name_taken(tmp)),
