@@ -77,3 +77,15 @@ def test_demo_runs_every_stage_writes_the_report_and_resumes(tmp_path, monkeypat
     assert again["evaluate"]["summary"]["conf_source"] == "best F1 on the validation split"
     assert stages["train yolov8n-seg"]["summary"]["weights_from"].endswith("poles-yolov8n-seg.pt")
     assert {k for k in again if again[k]["seconds"] != before[k]} >= {"train yolov8n-seg", "export yolov8n-seg"}
+
+
+def test_the_demo_refuses_a_folder_of_someone_elses_files(tmp_path):
+    """`poles demo --out ~/thesis` wrote data/, augmented/, train/ and stages.json among the files there."""
+    mine = tmp_path / "thesis"
+    mine.mkdir()
+    (mine / "thesis.tex").write_text("three years")
+    (tmp_path / "notes.txt").write_text("a file")
+    for out, said in ((mine, "holds thesis.tex, not an earlier demo's"), (tmp_path / "notes.txt", "is a file")):
+        with pytest.raises(ValueError, match=said):
+            run_demo(out, TINY)
+    assert sorted(p.name for p in mine.iterdir()) == ["thesis.tex"] and (mine / "thesis.tex").read_text() == "three years"

@@ -47,9 +47,12 @@ def file_fingerprint(path: Path | None) -> str:
 class StageLedger:
     """Runs stages in order, skipping those already done with the same key."""
 
+    #: The ledger's file in the run's folder.
+    FILE_NAME = "stages.json"
+
     def __init__(self, folder: Path, announce: Callable[[str], None] = print):
         self.folder = Path(folder)
-        self.path = self.folder / "stages.json"
+        self.path = self.folder / self.FILE_NAME
         self.announce = announce
         self.records: dict[str, StageRecord] = {}
         if self.path.is_file():
