@@ -88,4 +88,5 @@ def test_the_demo_refuses_a_folder_of_someone_elses_files(tmp_path):
     for out, said in ((mine, "holds thesis.tex, not an earlier demo's"), (tmp_path / "notes.txt", "is a file")):
         with pytest.raises(ValueError, match=said):
             run_demo(out, TINY)
-    assert sorted(p.name for p in mine.iterdir()) == ["thesis.tex"] and (mine / "thesis.tex").read_text() == "three years"
+    assert sorted(p.name for p in mine.iterdir()) == ["thesis.tex"]
+    assert (mine / "thesis.tex").read_text() == "three years"
