@@ -627,6 +627,17 @@ def _predict(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_summary(metrics: dict, localising: bool) -> str:
+    """One line of a run's figures: its errors where there was truth to score against, else what it saw."""
+    errors = [f"{key} mean {metrics[key]['mean']:.3f} m" for key in ("robot_error", "landmark_error", "odometry_error")
+              if key in metrics]
+    if errors:
+        return ", ".join(errors)
+    counts = metrics["counts"]
+    mapped = "" if localising else f", {counts['initialised']} landmarks mapped"
+    return f"no truth to score against: {counts['accepted']} sightings accepted{mapped}"
+
+
 def _slam(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
@@ -696,9 +707,7 @@ def _slam(args: argparse.Namespace) -> int:
             reference = smooth if args.sim and not front_end else None
             rows = compare_backends(lambda s: sequence if s == args.seed else make(s), seeds, BACKENDS, reference)
             write_json(out / "comparison.json", rows)
-    summary = ", ".join(f"{key} mean {metrics[key]['mean']:.3f} m" for key in
-                        ("robot_error", "landmark_error", "odometry_error") if key in metrics)
-    print(f"{config.label} on {sequence.name}: {summary}; wrote {args.out}")
+    print(f"{config.label} on {sequence.name}: {_run_summary(metrics, localising=bool(args.map))}; wrote {args.out}")
     if rows is not None:
         print_comparison(rows, f"back ends on {sequence.name} ({len(seeds)} seed(s))")
     return 0

@@ -43,6 +43,16 @@ class Foot:
     row: float
 
 
+def ground_plane_problem(pose: CameraPose) -> str | None:
+    """Why a camera pose has no floor under it to measure on (None when it has): the camera must stand above the
+    floor, its pitch and roll within +-90 deg."""
+    limit = math.pi / 2
+    if pose.z > 0 and abs(pose.pitch) < limit and abs(pose.roll) < limit:
+        return None
+    return (f"camera height {pose.z} m, pitch {pose.pitch:.3f} rad, roll {pose.roll:.3f} rad: the ground plane needs "
+            "the camera above the floor and pitch and roll within +-90 deg")
+
+
 @dataclass(frozen=True)
 class GroundView:
     """A camera of known height, pitch and roll over a flat floor (``pose``'s x, y and yaw are ignored)."""
@@ -52,11 +62,9 @@ class GroundView:
     pole: PoleGeometry = PoleGeometry()
 
     def __post_init__(self) -> None:
-        limit = math.pi / 2
-        if self.pose.z <= 0 or abs(self.pose.pitch) >= limit or abs(self.pose.roll) >= limit:
-            raise ValueError(f"camera height {self.pose.z} m, pitch {self.pose.pitch:.3f} rad, roll "
-                             f"{self.pose.roll:.3f} rad: the ground plane needs the camera above the floor and "
-                             "pitch and roll within +-90 deg - leave the pose out for this frame")
+        problem = ground_plane_problem(self.pose)
+        if problem:
+            raise ValueError(f"{problem} - leave the pose out for this frame")
 
     @cached_property
     def _rotation(self) -> np.ndarray:

@@ -148,6 +148,7 @@ def test_a_recording_without_its_odometry_file_is_named(tmp_path):
     with pytest.raises(ValueError, match=r"odometry.csv: no such odometry file - .* header t,x,y,theta"):
         recorded_sequence(frames, odometry, COLOUR_FILTER, 0.3)
 
+
 def test_a_recording_hands_each_frame_the_camera_pose_of_the_nearest_odometry_row(tmp_path, monkeypatch):
     frames, odometry = _recording(tmp_path)
     odometry.write_text("t,x,y,theta,camera_height,camera_pitch,camera_roll\n0.0,0,0,0,0.50,0.10,0.00\n"
@@ -159,6 +160,35 @@ def test_a_recording_hands_each_frame_the_camera_pose_of_the_nearest_odometry_ro
     seen.clear()
     recorded_sequence(frames, odometry, FrontEnd("shipped"), time_offset_s=0.3, camera_pose=False)
     assert seen == [None, None, None]
+
+    odometry.write_text(odometry.read_text().replace("0.8,0.1,0,0.02,0.52,0.14,0.02", "0.8,0.1,0,0.02,,,"))
+    seen.clear()
+    recorded_sequence(frames, odometry, FrontEnd("shipped"), time_offset_s=0.3)
+    assert seen[1] is None and [(p.z, p.pitch, p.roll) for p in (seen[0], seen[2])] == [(0.51, 0.12, 0.01),
+                                                                                       (0.53, 0.16, 0.03)]
+
+
+@pytest.mark.parametrize("text, message", [
+    ("t,x,y,theta,camera_height\n0.0,0,0,0,0.5\n1.2,0.1,0,0,0.5\n",
+     "odometry.csv:1: camera_height without camera_pitch, camera_roll"),
+    ("t,x,y,theta,camera_height,camera_pitch,camera_roll\n0.0,0,0,0,0.5,0.1,0\n1.2,0.1,0,0,-0.5,0.1,0\n",
+     "odometry.csv:3: camera height -0.5 m.* - correct the row, or leave its three camera cells empty"),
+    ("t,x,y,theta,camera_height,camera_pitch,camera_roll\n0.0,0,0,0,0.5,0.1,0\n1.2,0.1,0,0,0.5,,\n",
+     "odometry.csv:3: not finite numbers in camera_height,camera_pitch,camera_roll")])
+def test_a_recordings_camera_columns_are_all_or_none_and_each_pose_has_a_floor(tmp_path, text, message):
+    """A lone camera_height column was ignored without a word; a height below the floor failed at its frame
+    without naming the row."""
+    frames, odometry = _recording(tmp_path)
+    odometry.write_text(text)
+    with pytest.raises(ValueError, match=message):
+        recorded_sequence(frames, odometry, COLOUR_FILTER, 0.3)
+
+
+def test_a_recording_without_truth_reports_what_it_saw(tmp_path, capsys):
+    frames, odometry = _recording(tmp_path)
+    assert main(["slam", "--frames", str(frames), "--odometry", str(odometry), "--frontend", "colour-filter",
+                 "--out", str(tmp_path / "out")]) == 0
+    assert "no truth to score against: 0 sightings accepted, 0 landmarks mapped; wrote" in capsys.readouterr().out
 
 
 FIELD_MAP = "class,x,y\nbp,-4.675,3.175\ngp,0,3.175\nyp,4.675,3.175\npb,-4.675,-3.175\npg,0,-3.175\npy,4.675,-3.175\n"

@@ -13,6 +13,7 @@ from detector.console import show_progress
 from detector.datasets.io import csv_rows, require_decodable
 from detector.datasets.names import canonical_class
 from naoslam.camera import CameraPose
+from naoslam.ground import ground_plane_problem
 from naoslam.landmarks import CLASSES
 from naoslam.logs import load_utias
 from naoslam.measurement import THESIS_CONF, Measurement, MeasurementModel, RangeCalibration
@@ -110,6 +111,8 @@ def image_sequences(config: SimConfig, front_ends: list[FrontEnd], progress: boo
 FRAME_SLACK_S = 1.0
 
 
+#: The odometry CSV's columns: time (s) and the odometry pose (m, m, rad).
+ODOMETRY_COLUMNS = ("t", "x", "y", "theta")
 #: Optional odometry CSV columns with the camera's pose (m, rad; pitch down positive) from the joint angles.
 POSE_COLUMNS = ("camera_height", "camera_pitch", "camera_roll")
 
@@ -119,7 +122,8 @@ def recorded_sequence(frames_dir: Path, odometry_csv: Path, front_end: FrontEnd,
     """Frames named by their time stamp (``12.533.jpg``) and an odometry CSV ``t,x,y,theta``, merged in time.
 
     When the CSV also has ``camera_height,camera_pitch,camera_roll`` (and ``camera_pose``), each frame is measured
-    with the pose of the odometry row nearest in time: ground-plane gate and foot-row range.
+    with the pose of the odometry row nearest in time: ground-plane gate and foot-row range (none for a frame whose
+    nearest row leaves the three camera cells empty).
 
     Refused with the file and line: a missing header, values that are not finite numbers, time stamps that do not
     increase, fewer than two rows, frames not named by a number or lying more than ``FRAME_SLACK_S`` outside the
@@ -153,32 +157,55 @@ def recorded_sequence(frames_dir: Path, odometry_csv: Path, front_end: FrontEnd,
     return Sequence(events, np.array(rows[0][1:]), OdometryModel(), {}, f"recording {Path(frames_dir).name}")
 
 
-def _odometry_rows(odometry_csv: Path) -> tuple[list[list[float]], list[CameraPose] | None]:
+def _odometry_rows(odometry_csv: Path) -> tuple[list[list[float]], list[CameraPose | None] | None]:
     """The rows of an odometry CSV ``t,x,y,theta`` (checked: finite numbers, strictly increasing times) and the
-    camera pose of each row when the pose columns are there."""
+    camera pose of each row when the pose columns are there (None for a row whose three camera cells are empty)."""
     rows: list[list[float]] = []
-    poses: list[CameraPose] = []
+    poses: list[CameraPose | None] = []
     if not odometry_csv.is_file():
         raise ValueError(f"{odometry_csv}: no such odometry file - pass the robot's odometry as a CSV with the "
                          "header t,x,y,theta (README, 'The naoslam runtime')")
-    for line, row in csv_rows(odometry_csv, ("t", "x", "y", "theta")):
-        columns = ("t", "x", "y", "theta") + (POSE_COLUMNS if all(name in row for name in POSE_COLUMNS) else ())
-        try:
-            values = [float(row[k]) for k in columns]
-            if not all(math.isfinite(v) for v in values):
-                raise ValueError
-        except (TypeError, ValueError):
-            raise ValueError(f"{odometry_csv}:{line}: not finite numbers in {','.join(columns)}") from None
-        if len(values) > 4:
-            poses.append(CameraPose(z=values[4], pitch=values[5], roll=values[6]))
-            values = values[:4]
+    for line, row in csv_rows(odometry_csv, ODOMETRY_COLUMNS):
+        named = [name for name in POSE_COLUMNS if name in row]
+        if 0 < len(named) < len(POSE_COLUMNS):
+            missing = [name for name in POSE_COLUMNS if name not in row]
+            raise ValueError(f"{odometry_csv}:1: {', '.join(named)} without {', '.join(missing)} - give all three "
+                             "camera columns or none")
+        values = _finite_cells(odometry_csv, line, row, ODOMETRY_COLUMNS)
         if rows and values[0] <= rows[-1][0]:
             raise ValueError(f"{odometry_csv}:{line}: time {values[0]:g} does not come after the previous row's "
                              f"{rows[-1][0]:g} - sort the file by t and drop repeated rows")
         rows.append(values)
+        if named:
+            poses.append(_camera_pose(odometry_csv, line, row))
     if len(rows) < 2:
         raise ValueError(f"{odometry_csv}: needs at least two odometry rows, found {len(rows)}")
     return rows, poses or None
+
+
+def _finite_cells(path: Path, line: int, row: dict[str, str], columns: tuple[str, ...]) -> list[float]:
+    """The row's ``columns`` as finite numbers, or a ValueError naming the file and line."""
+    try:
+        values = [float(row[name]) for name in columns]
+    except (TypeError, ValueError):
+        values = [math.nan]
+    if not all(math.isfinite(v) for v in values):
+        raise ValueError(f"{path}:{line}: not finite numbers in {','.join(columns)}")
+    return values
+
+
+def _camera_pose(path: Path, line: int, row: dict[str, str]) -> CameraPose | None:
+    """The camera's pose on an odometry row (None where its three camera cells are empty: the joints were not read),
+    refused by the file and line where it has no floor under it."""
+    if not any(row.get(name) for name in POSE_COLUMNS):
+        return None
+    height, pitch, roll = _finite_cells(path, line, row, POSE_COLUMNS)
+    pose = CameraPose(z=height, pitch=pitch, roll=roll)
+    problem = ground_plane_problem(pose)
+    if problem:
+        raise ValueError(f"{path}:{line}: {problem} - correct the row, or leave its three camera cells empty where "
+                         "the joints were not read")
+    return pose
 
 
 def read_pole_map(path: Path) -> dict[str, tuple[float, float]]:
