@@ -12,7 +12,7 @@ import pytest
 import yaml
 
 from detector.cli import main
-from detector.datasets import load_dataset
+from detector.datasets import DatasetError, load_dataset
 from detector.datasets.labels import BOX_ONLY
 from tests.test_bad_input import first_label, to_coco, tree_hash
 
@@ -53,6 +53,22 @@ def test_alphabetical_export_keeps_every_class_through_every_command(alphabetica
         assert poles_by_name(tmp_path / out) == truth, out
     augmented = poles_by_name(tmp_path / "augmented")
     assert all(augmented[key] >= count for key, count in truth.items())  # originals kept, copies added
+
+
+def test_names_keyed_by_id_are_read_in_id_order_past_ten_classes(dataset_copy):
+    """``names: {0: ..., 11: ...}`` was sorted as text (0, 1, 10, 11, 2, ...): from class 2 on every class took
+    another's name. Here six other classes come first and the poles are ids 6-11."""
+    truth = poles_by_name(dataset_copy)
+    poles = yaml.safe_load((dataset_copy / "data.yaml").read_text())["names"]
+    reorder_classes(dataset_copy, [f"other{i}" for i in range(6)] + poles)
+    config = yaml.safe_load((dataset_copy / "data.yaml").read_text())
+    config["names"] = dict(enumerate(config["names"]))
+    (dataset_copy / "data.yaml").write_text(yaml.safe_dump(config))
+    assert poles_by_name(dataset_copy) == truth
+    config["names"] = {0: "bp", 2: "gp"}
+    (dataset_copy / "data.yaml").write_text(yaml.safe_dump(config))
+    with pytest.raises(DatasetError, match="are not the class ids 0-1"):
+        load_dataset(dataset_copy)
 
 
 def test_alphabetical_export_trains_exports_and_evaluates(alphabetical, tmp_path):

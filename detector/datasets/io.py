@@ -110,7 +110,7 @@ def _class_names(yaml_path: Path, config: dict, problems: list[Problem],
                  renames: dict[str, str] | None) -> tuple[str | None, ...]:
     raw = config.get("names")
     if isinstance(raw, dict):
-        raw = [raw[k] for k in sorted(raw, key=str)]
+        raw = _names_by_id(yaml_path, raw)
     if not isinstance(raw, list) or not raw:
         raise DatasetError([Problem("error", yaml_path, None, "no `names` list",
                                     "add `names: ['bp', 'gp', 'yp', 'pb', 'pg', 'py']` (in your class order)")])
@@ -120,6 +120,21 @@ def _class_names(yaml_path: Path, config: dict, problems: list[Problem],
         problems.append(Problem("warning", yaml_path, None, f"nc is {config['nc']} but names has {len(raw)} entries",
                                 "set nc to the length of names"))
     return names
+
+
+def _names_by_id(yaml_path: Path, names: dict) -> list:
+    """``names: {0: bp, 1: gp, ...}`` (as Ultralytics writes it) as the list of names in class-id order; ids must run
+    0, 1, 2 ... (sorted as text, 10 came before 2 and every later class took another's name)."""
+    try:
+        ids = sorted(int(key) for key in names)
+    except (TypeError, ValueError):
+        ids = []
+    if ids != list(range(len(names))):
+        raise DatasetError([Problem("error", yaml_path, None, f"`names` keys {list(names)} are not the class ids "
+                                    f"0-{len(names) - 1}", "key each name by its class id, `names: {0: bp, 1: gp}`, "
+                                    "or give a list in class order")])
+    by_id = {int(key): name for key, name in names.items()}
+    return [by_id[i] for i in ids]
 
 
 def _split_folder(base: Path, value, split: str) -> Path | None:
