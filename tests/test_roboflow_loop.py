@@ -71,15 +71,15 @@ def test_names_keyed_by_id_are_read_in_id_order_past_ten_classes(dataset_copy):
         load_dataset(dataset_copy)
 
 
-def test_a_stale_path_in_data_yaml_falls_back_to_the_folder_of_data_yaml_with_a_warning(dataset_copy, tmp_path):
-    """A data.yaml written for Ultralytics on another machine (``path: /home/someone/poles``) found no images."""
-    truth = poles_by_name(dataset_copy)
+def test_a_stale_path_in_data_yaml_is_refused_in_one_line_that_names_the_fix(dataset_copy, tmp_path, capsys):
+    """A data.yaml written for Ultralytics on another machine (``path: /home/someone/poles``) was reported as "no
+    images found in any split" and one warning per split."""
     config = yaml.safe_load((dataset_copy / "data.yaml").read_text())
     config["path"] = str(tmp_path / "on-another-machine")
     (dataset_copy / "data.yaml").write_text(yaml.safe_dump(config))
-    assert poles_by_name(dataset_copy) == truth
-    [warning] = [p for p in load_dataset(dataset_copy).problems if "path:" in p.message]
-    assert warning.severity == "warning" and "delete the `path:` line" in warning.fix
+    assert main(["check", str(dataset_copy)]) == 1
+    report = capsys.readouterr().out
+    assert "names no folder" in report and "delete the `path:` line" in report and "no images found" not in report
 
 
 def test_alphabetical_export_trains_exports_and_evaluates(alphabetical, tmp_path):

@@ -92,10 +92,9 @@ def _load_yolo(yaml_path: Path, renames: dict[str, str] | None) -> Dataset:
     samples: list[Sample] = []
     base = root / str(config["path"]) if config.get("path") else root
     if not base.is_dir():
-        problems.append(Problem("warning", yaml_path, None, f"path: {config['path']!r} names no folder (a data.yaml "
-                                "from another machine?): the splits were looked for beside data.yaml",
-                                "delete the `path:` line or correct it"))
-        base = root
+        raise DatasetError([Problem("error", yaml_path, None, f"path: {config['path']!r} names no folder (a data.yaml "
+                                    "from another machine?)", "delete the `path:` line, so the splits are read beside "
+                                    "data.yaml, or correct it")])
     for key, split in YAML_SPLIT_KEYS.items():
         images_dir = _split_folder(base, config.get(key), split)
         if images_dir is None:
