@@ -170,8 +170,9 @@ COCO_CASES = [
     _coco_case("nan coordinate", lambda d: _annotation(d)["segmentation"][0].__setitem__(1, float("nan")), "not finite",
                "augment"),
     _coco_case("unknown image_id", lambda d: _annotation(d).__setitem__("image_id", 999), "image_id 999", "train"),
-    _coco_case("unknown category", lambda d: d["categories"].append({"id": 9, "name": "ball", "supercategory": "p"}),
-               "'ball' names no landmark", "evaluate"),
+    _coco_case("outlines of an unknown category", lambda d: (
+        d["categories"].append({"id": 9, "name": "ball", "supercategory": "p"}),
+        _annotation(d).__setitem__("category_id", 9)), "'ball' names no landmark and labels 1 outline", "evaluate"),
     _coco_case("box only", lambda d: _annotation(d).__setitem__("segmentation", []), "segmentation labels needed"),
     _coco_case("outside the image", lambda d: _annotation(d)["segmentation"][0].__setitem__(0, 5000.0),
                "outside the", "split"),

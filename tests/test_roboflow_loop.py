@@ -14,7 +14,7 @@ import yaml
 from detector.cli import main
 from detector.datasets import DatasetError, load_dataset
 from detector.datasets.labels import BOX_ONLY
-from tests.test_bad_input import first_label, to_coco, tree_hash
+from tests.test_bad_input import coco_edit, first_label, to_coco, tree_hash
 
 ALPHABETICAL = ["bp", "gp", "pb", "pg", "py", "yp"]  # how Roboflow orders the six classes
 
@@ -80,6 +80,33 @@ def test_a_stale_path_in_data_yaml_is_refused_in_one_line_that_names_the_fix(dat
     assert main(["check", str(dataset_copy)]) == 1
     report = capsys.readouterr().out
     assert "names no folder" in report and "delete the `path:` line" in report and "no images found" not in report
+
+
+@pytest.mark.parametrize("layout", ["yolov8", "coco"])
+def test_a_class_that_names_no_landmark_is_refused_only_where_outlines_use_it(dataset_copy, tmp_path, layout, capsys):
+    """Roboflow lists every class of a project. An unused 'robot' class was refused, and the advice, `--rename
+    'robot=bp'`, met the next refusal: two classes meaning bp."""
+    truth = poles_by_name(dataset_copy)
+    if layout == "coco":
+        data = to_coco(dataset_copy, tmp_path / "coco")
+        coco_edit(data, lambda d: d["categories"].append({"id": 7, "name": "robot", "supercategory": "poles"}))
+    else:
+        data = dataset_copy
+        config = yaml.safe_load((data / "data.yaml").read_text())
+        config["names"] = [*config["names"], "robot"]
+        (data / "data.yaml").write_text(yaml.safe_dump(config))
+    assert main(["convert", str(data), "--out", str(tmp_path / "out")]) == 0
+    assert poles_by_name(tmp_path / "out") == truth
+    assert any(p.severity == "note" and "'robot' names no landmark and labels no outline: ignored" in p.message
+               for p in load_dataset(data).problems)
+    if layout == "coco":
+        coco_edit(data, lambda d: d["annotations"][0].__setitem__("category_id", 7))
+    else:
+        label = next(p for p in sorted(data.rglob("labels/*.txt")) if p.read_text().strip())
+        label.write_text(label.read_text().replace(label.read_text().split()[0], "6", 1))
+    capsys.readouterr()
+    assert main(["convert", str(data), "--out", str(tmp_path / "refused")]) == 2
+    assert "'robot' names no landmark and labels 1 outline(s)" in capsys.readouterr().err
 
 
 def test_alphabetical_export_trains_exports_and_evaluates(alphabetical, tmp_path):

@@ -2,13 +2,14 @@
 from __future__ import annotations
 
 import json
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
 
 from detector.datasets.io import IMAGE_SUFFIXES
 from detector.datasets.model import SPLITS, Dataset, Instance, Problem, Sample
-from detector.datasets.names import class_codes
+from detector.datasets.names import class_codes, unknown_class_problems
 from detector.datasets.orientation import stored_and_upright_size
 from detector.datasets.polygons import merge_polygons, polygon_area
 from detector.datasets.labels import BOX_ONLY, MIN_NORMALISED_AREA
@@ -51,7 +52,8 @@ def _read_coco_split(split: str, json_path: Path, problems: list[Problem], renam
     if not isinstance(coco, dict) or not all(isinstance(coco.get(k, []), list) for k in ("images", "annotations", "categories")):
         error("not a COCO file (no `images`, `annotations` and `categories` lists)", "re-export as COCO segmentation")
         return []
-    categories = _categories(coco["categories"] if "categories" in coco else [], json_path, problems, renames)
+    categories = _categories(coco["categories"] if "categories" in coco else [], coco.get("annotations", []),
+                             json_path, problems, renames)
     images: dict = {}
     for image in coco.get("images", []):
         if not isinstance(image, dict) or not isinstance(image.get("file_name"), str) or "id" not in image:
@@ -83,16 +85,24 @@ def _read_coco_split(split: str, json_path: Path, problems: list[Problem], renam
     return samples
 
 
-def _categories(raw: list, json_path: Path, problems: list[Problem], renames: dict[str, str] | None) -> dict:
+def _categories(raw: list, annotations: list, json_path: Path, problems: list[Problem],
+                renames: dict[str, str] | None) -> dict:
     """Category id -> landmark code (None: names no landmark). Roboflow's placeholder supercategory (id 0,
-    the project's name, which no annotation uses) is skipped; the rest go through ``class_codes``."""
+    the project's name, which no annotation uses) is skipped; the rest go through ``class_codes`` and, where they
+    name no landmark, ``unknown_class_problems`` with the ``annotations`` that use them."""
     used = [c for c in raw if isinstance(c, dict) and "id" in c and "name" in c]
     if len(used) != len(raw):
         problems.append(Problem("error", json_path, None, "a category has no `id` or `name`", "re-export the dataset"))
     placeholder = [c for c in used if c.get("supercategory") == "none" and c["id"] == 0 and len(used) > 1]
     named = [c for c in used if c not in placeholder]
-    codes, found = class_codes([c["name"] for c in named], json_path, renames)
+    raw_names = [c["name"] for c in named]
+    codes, found = class_codes(raw_names, json_path, renames)
     problems += found
+    if None in codes:
+        index_of = {c["id"]: index for index, c in enumerate(named)}
+        outlines = Counter(index_of[a["category_id"]] for a in annotations
+                           if isinstance(a, dict) and a.get("category_id") in index_of)
+        problems += unknown_class_problems(json_path, raw_names, codes, outlines)
     return {c["id"]: code for c, code in zip(named, codes)}
 
 

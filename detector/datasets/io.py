@@ -5,6 +5,7 @@ import csv
 import json
 import os
 import shutil
+from collections import Counter
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -15,7 +16,7 @@ import yaml
 
 from detector.datasets.labels import format_label_line, parse_label_file
 from detector.datasets.model import SPLITS, Dataset, DatasetError, Instance, Problem, Sample
-from detector.datasets.names import class_codes
+from detector.datasets.names import class_codes, unknown_class_problems
 from naoslam.atomic import atomic_folder
 from naoslam.landmarks import CLASSES
 
@@ -88,7 +89,7 @@ def _load_yolo(yaml_path: Path, renames: dict[str, str] | None) -> Dataset:
     if not isinstance(config, dict):
         raise DatasetError([Problem("error", yaml_path, None, f"holds a {type(config).__name__}, not a mapping",
                                     "write `train:`, `val:`, `test:` and `names:` keys as Roboflow does")])
-    names = _class_names(yaml_path, config, problems, renames)
+    raw_names, names = _class_names(yaml_path, config, problems, renames)
     samples: list[Sample] = []
     base = root / str(config["path"]) if config.get("path") else root
     if not base.is_dir():
@@ -106,12 +107,28 @@ def _load_yolo(yaml_path: Path, renames: dict[str, str] | None) -> Dataset:
     if not any(s.image for s in samples):
         problems.append(Problem("error", yaml_path, None, "no images found in any split",
                                 "the layout is train/images, valid/images, test/images beside data.yaml"))
+    if None in names:
+        problems += unknown_class_problems(yaml_path, raw_names, names, _outlines_per_class_id(samples))
     problems += _duplicate_stems(samples)
     return Dataset(root, samples, problems)
 
 
+def _outlines_per_class_id(samples: list[Sample]) -> Counter:
+    """How many label lines name each class id (a line that does not start with a whole number is not counted:
+    its own error says why)."""
+    counts: Counter = Counter()
+    for sample in samples:
+        if sample.label is not None and sample.label.is_file():
+            for line in sample.label.read_text(encoding="utf-8", errors="replace").splitlines():
+                first = line.split(maxsplit=1)[0] if line.strip() else ""
+                if first.isdigit():
+                    counts[int(first)] += 1
+    return counts
+
+
 def _class_names(yaml_path: Path, config: dict, problems: list[Problem],
-                 renames: dict[str, str] | None) -> tuple[str | None, ...]:
+                 renames: dict[str, str] | None) -> tuple[list, tuple[str | None, ...]]:
+    """The class names data.yaml declares, in id order, and the landmark code of each (None: names no landmark)."""
     raw = config.get("names")
     if isinstance(raw, dict):
         raw = _names_by_id(yaml_path, raw)
@@ -123,7 +140,7 @@ def _class_names(yaml_path: Path, config: dict, problems: list[Problem],
     if "nc" in config and config["nc"] != len(raw):
         problems.append(Problem("warning", yaml_path, None, f"nc is {config['nc']} but names has {len(raw)} entries",
                                 "set nc to the length of names"))
-    return names
+    return raw, names
 
 
 def _names_by_id(yaml_path: Path, names: dict) -> list:

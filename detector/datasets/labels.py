@@ -55,7 +55,8 @@ def _parse_line(path: Path, number: int, tokens: list[str], names: tuple[str | N
                      "use an index into `names` in data.yaml, or add the class there")
     cls = names[int(class_value)]
     if cls is None:
-        return error(f"class id {int(class_value)} names no landmark", "rename the class in data.yaml to one of bp gp yp pb pg py")
+        return error(f"class id {int(class_value)} names no landmark", f"read class {int(class_value)} as a pole with "
+                     "`--rename` (data.yaml's message for it says how), or delete this line")
     if len(coords) % 2:
         return error(f"odd number of coordinates ({len(coords)})", "each vertex needs an x and a y")
     if len(coords) < 6:

@@ -6,6 +6,7 @@ the same words.
 from __future__ import annotations
 
 import re
+from collections import Counter
 from pathlib import Path
 
 from detector.datasets.model import Problem
@@ -48,26 +49,38 @@ def parse_renames(pairs: list[str] | None) -> dict[str, str]:
 def class_codes(raw_names: list, source: Path, renames: dict[str, str] | None = None) -> tuple[tuple[str | None, ...], list[Problem]]:
     """The canonical code of each declared class (None where it names no landmark) and the problems with them.
 
-    Two classes that mean the same landmark are refused: their instances would silently merge.
+    Two classes that mean the same landmark are refused: their instances would silently merge. A class that names
+    no landmark is judged by ``unknown_class_problems`` once the outlines are read.
     """
     renames = renames or {}
     codes = tuple(canonical_class(renames.get(str(n), n)) for n in raw_names)
     problems = []
     first: dict[str, int] = {}
     for index, (given, code) in enumerate(zip(raw_names, codes)):
-        if code is None:
-            problems.append(unknown_class_problem(source, index, given))
-        elif code in first:
+        if code in first:
             problems.append(Problem("error", source, None, f"classes {first[code]} ({raw_names[first[code]]!r}) and "
                                     f"{index} ({given!r}) both mean {code}: their poles would merge",
                                     "give each class its own name in the export"))
-        else:
+        elif code is not None:
             first[code] = index
     return codes, problems
 
 
-def unknown_class_problem(source: Path, index: int, given) -> Problem:
-    """The one message for a class name that names no landmark."""
-    return Problem("error", source, None, f"class {index} {str(given)!r} names no landmark",
-                   f"rename it to one of {' '.join(CLASSES)} (bands top first), e.g. "
-                   f"`poles convert DATA --out NEW --rename '{given}=bp'`")
+def unknown_class_problems(source: Path, raw_names: list, codes: tuple[str | None, ...],
+                           outlines: Counter) -> list[Problem]:
+    """The one rule for a declared class that names no landmark: an error where outlines are labelled with it (they
+    cannot be read as any pole), a note where none is (ignored: Roboflow lists every class of a project, and a
+    rename to a pole's code would clash with that pole's own class). ``outlines`` counts them by class index."""
+    problems = []
+    for index, (given, code) in enumerate(zip(raw_names, codes)):
+        if code is not None:
+            continue
+        if outlines[index]:
+            problems.append(Problem("error", source, None, f"class {index} {str(given)!r} names no landmark and "
+                                    f"labels {outlines[index]} outline(s)", "if it is a pole class, read it as one: "
+                                    f"`poles convert DATA --out NEW --rename '{given}=CODE'` with CODE one of "
+                                    f"{' '.join(CLASSES)} (bands top first); if not, delete its outlines"))
+        else:
+            problems.append(Problem("note", source, None, f"class {index} {str(given)!r} names no landmark and "
+                                    "labels no outline: ignored", "nothing to do"))
+    return problems
