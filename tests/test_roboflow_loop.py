@@ -103,7 +103,7 @@ def test_a_class_that_names_no_landmark_is_refused_only_where_outlines_use_it(da
         coco_edit(data, lambda d: d["annotations"][0].__setitem__("category_id", 7))
     else:
         label = next(p for p in sorted(data.rglob("labels/*.txt")) if p.read_text().strip())
-        label.write_text(label.read_text().replace(label.read_text().split()[0], "6", 1))
+        label.write_text(label.read_text().replace(label.read_text().split()[0], "6.0", 1))  # the parser reads 6.0
     capsys.readouterr()
     assert main(["convert", str(data), "--out", str(tmp_path / "refused")]) == 2
     assert "'robot' names no landmark and labels 1 outline(s)" in capsys.readouterr().err

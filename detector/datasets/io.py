@@ -114,15 +114,18 @@ def _load_yolo(yaml_path: Path, renames: dict[str, str] | None) -> Dataset:
 
 
 def _outlines_per_class_id(samples: list[Sample]) -> Counter:
-    """How many label lines name each class id (a line that does not start with a whole number is not counted:
-    its own error says why)."""
+    """How many label lines name each class id, read as the label parser reads it (``6`` or ``6.0``; a line that
+    does not start with a whole number is not counted: its own error says why)."""
     counts: Counter = Counter()
     for sample in samples:
         if sample.label is not None and sample.label.is_file():
-            for line in sample.label.read_text(encoding="utf-8", errors="replace").splitlines():
-                first = line.split(maxsplit=1)[0] if line.strip() else ""
-                if first.isdigit():
-                    counts[int(first)] += 1
+            for line in sample.label.read_text(encoding="utf-8-sig", errors="replace").splitlines():
+                try:
+                    value = float(line.split(maxsplit=1)[0])
+                except (IndexError, ValueError):
+                    continue
+                if value.is_integer():
+                    counts[int(value)] += 1
     return counts
 
 
