@@ -209,7 +209,11 @@ class LandmarkDetector:
     def stored_calibration(self) -> RangeCalibration | None:
         """The range calibration stored in the model by ``poles calibrate --embed`` (None if there is none)."""
         data = self.info.extra.get("calibration")
-        return RangeCalibration.from_dict(data) if data else None
+        try:
+            return RangeCalibration.from_dict(data) if data else None
+        except (ValueError, TypeError, KeyError) as error:
+            raise ValueError(f"{self.path}: the calibration in the model is not one ({error}) - store a new one "
+                             f"with `poles calibrate --embed {model_argument(self.path)}`") from None
 
     @property
     def calibration(self) -> RangeCalibration | None:

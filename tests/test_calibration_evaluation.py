@@ -237,6 +237,20 @@ def test_a_model_without_calibration_is_refused_when_the_measurement_model_is_bu
         MeasurementModel(detector.calibration, min_confidence=detector.conf)
 
 
+def test_a_broken_calibration_in_a_model_is_refused_naming_the_model(tiny_onnx, tmp_path):
+    """A range law with a <= 0 in a model's metadata gave nonsense ranges; with the law's own check it would name
+    no file."""
+    from export.onnx_export import add_metadata
+
+    model = tmp_path / "model.onnx"
+    shutil.copy(tiny_onnx, model)
+    broken = RangeCalibration(PowerLaw(50.0, -1.0), PowerLaw(220.0, -1.0)).to_dict()
+    broken["width_law"]["a"] = -50.0
+    add_metadata(model, calibration=broken)
+    with pytest.raises(ValueError, match=r"model.onnx: the calibration in the model is not one .* a must be above 0"):
+        LandmarkDetector(model).calibration
+
+
 def test_measurement_model_keeps_confident_detections_only(tiny_onnx, synth_dataset):
     from naoslam.detector import LandmarkDetector
 
