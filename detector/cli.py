@@ -86,10 +86,10 @@ def _numbers(names: str, positive: bool = False) -> Callable[[str], tuple[float,
 
     def parse(text: str) -> tuple[float, ...]:
         try:
-            values = tuple(float(v) for v in text.split(","))
-        except ValueError:
+            values = tuple(_number(v) for v in text.split(","))
+        except argparse.ArgumentTypeError:
             values = ()
-        if len(values) != count or not all(math.isfinite(v) and (v > 0 or not positive) for v in values):
+        if len(values) != count or (positive and min(values) <= 0):
             kind = "positive numbers" if positive else "numbers"
             raise argparse.ArgumentTypeError(f"{text!r}: give {names} as {count} {kind} separated by commas")
         return values

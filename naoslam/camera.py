@@ -15,6 +15,11 @@ import numpy as np
 NAO_HFOV_DEG = 56.3
 
 
+def finite_numbers(*values) -> bool:
+    """Whether every value is a real, finite number (not None, text, NaN or infinity)."""
+    return all(isinstance(v, numbers.Real) and math.isfinite(v) for v in values)
+
+
 @dataclass(frozen=True)
 class PinholeCamera:
     """Intrinsics of an undistorted pinhole camera with square pixels and the principal point at the centre."""
@@ -26,10 +31,10 @@ class PinholeCamera:
     def __post_init__(self) -> None:
         for name in ("width", "height"):
             value = getattr(self, name)
-            if not (isinstance(value, numbers.Real) and math.isfinite(value) and value > 0):
+            if not (finite_numbers(value) and value > 0):
                 raise ValueError(f"image {name} {value!r}: give the frame's size in pixels, width frame.shape[1] and "
                                  "height frame.shape[0]")
-        if not (isinstance(self.hfov_deg, numbers.Real) and 0 < self.hfov_deg < 180):
+        if not (finite_numbers(self.hfov_deg) and 0 < self.hfov_deg < 180):
             raise ValueError(f"field of view {self.hfov_deg!r} deg: give the camera's horizontal field of view in "
                              f"degrees, between 0 and 180 (the Nao's top camera: {NAO_HFOV_DEG})")
 

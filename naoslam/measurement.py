@@ -11,22 +11,16 @@ walking robot's noise), so the filter's measurement noise comes from data.
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from naoslam.camera import CameraPose, PinholeCamera
+from naoslam.camera import CameraPose, PinholeCamera, finite_numbers
 from naoslam.ground import GroundView
 from naoslam.landmarks import PoleGeometry
 
 #: Range choices: the thesis's rule, only one law, or inverse-variance fusion of both.
 RANGE_METHODS = ("rule", "width", "height", "fused")
-
-
-def _finite(*values) -> bool:
-    """Whether every value is a real, finite number."""
-    return all(isinstance(v, numbers.Real) and math.isfinite(v) for v in values)
 
 
 @dataclass(frozen=True)
@@ -38,7 +32,7 @@ class PowerLaw:
     relative_std: float = 0.1
 
     def __post_init__(self) -> None:
-        if not (_finite(self.a, self.b, self.relative_std) and self.a > 0 and self.relative_std >= 0):
+        if not (finite_numbers(self.a, self.b, self.relative_std) and self.a > 0 and self.relative_std >= 0):
             raise ValueError(f"range law {self.a!r} * px ** {self.b!r} (relative s.d. {self.relative_std!r}): a must "
                              "be above 0, b finite and the s.d. not negative - refit it with `poles calibrate`")
 
@@ -88,8 +82,8 @@ class RangeCalibration:
     input_width: int | None = None
 
     def __post_init__(self) -> None:
-        if not (_finite(self.reference_width_px, self.bearing_std_rad, self.hfov_deg) and self.reference_width_px > 0
-                and self.bearing_std_rad >= 0 and 0 < self.hfov_deg < 180):
+        if not (finite_numbers(self.reference_width_px, self.bearing_std_rad, self.hfov_deg)
+                and self.reference_width_px > 0 and self.bearing_std_rad >= 0 and 0 < self.hfov_deg < 180):
             raise ValueError(f"calibration for {self.reference_width_px!r} px wide frames, bearing s.d. "
                              f"{self.bearing_std_rad!r} rad, field of view {self.hfov_deg!r} deg: the width must be "
                              "above 0, the s.d. not negative and the field of view 0-180 deg - refit it with `poles "

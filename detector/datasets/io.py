@@ -91,6 +91,7 @@ def _load_yolo(yaml_path: Path, renames: dict[str, str] | None) -> Dataset:
                                     "write `train:`, `val:`, `test:` and `names:` keys as Roboflow does")])
     raw_names, names = _class_names(yaml_path, config, problems, renames)
     samples: list[Sample] = []
+    unknown_uses: Counter = Counter()
     base = root / str(config["path"]) if config.get("path") else root
     if not base.is_dir():
         raise DatasetError([Problem("error", yaml_path, None, f"path: {config['path']!r} names no folder (a data.yaml "
@@ -103,30 +104,14 @@ def _load_yolo(yaml_path: Path, renames: dict[str, str] | None) -> Dataset:
                 problems.append(Problem("warning", yaml_path, None, f"{key}: {config[key]!r} names no folder: "
                                         f"the {split} split is empty", f"create {split}/images or fix the path"))
             continue
-        samples += _read_split(split, images_dir, names, problems)
+        samples += _read_split(split, images_dir, names, problems, unknown_uses)
     if not any(s.image for s in samples):
         problems.append(Problem("error", yaml_path, None, "no images found in any split",
                                 "the layout is train/images, valid/images, test/images beside data.yaml"))
     if None in names:
-        problems += unknown_class_problems(yaml_path, raw_names, names, _outlines_per_class_id(samples))
+        problems += unknown_class_problems(yaml_path, raw_names, names, unknown_uses)
     problems += _duplicate_stems(samples)
     return Dataset(root, samples, problems)
-
-
-def _outlines_per_class_id(samples: list[Sample]) -> Counter:
-    """How many label lines name each class id, read as the label parser reads it (``6`` or ``6.0``; a line that
-    does not start with a whole number is not counted: its own error says why)."""
-    counts: Counter = Counter()
-    for sample in samples:
-        if sample.label is not None and sample.label.is_file():
-            for line in sample.label.read_text(encoding="utf-8-sig", errors="replace").splitlines():
-                try:
-                    value = float(line.split(maxsplit=1)[0])
-                except (IndexError, ValueError):
-                    continue
-                if value.is_integer():
-                    counts[int(value)] += 1
-    return counts
 
 
 def _class_names(yaml_path: Path, config: dict, problems: list[Problem],
@@ -169,7 +154,7 @@ def _split_folder(base: Path, value, split: str) -> Path | None:
     return next((c.resolve() for c in candidates if c.is_dir()), None)
 
 
-def _read_split(split: str, images_dir: Path, names, problems: list[Problem]) -> list[Sample]:
+def _read_split(split: str, images_dir: Path, names, problems: list[Problem], unknown_uses: Counter) -> list[Sample]:
     labels_dir = images_dir.parent / "labels"
     images = {p.stem: p for p in sorted(images_dir.iterdir()) if p.suffix.lower() in IMAGE_SUFFIXES}
     seen: dict[str, Path] = {}
@@ -185,7 +170,7 @@ def _read_split(split: str, images_dir: Path, names, problems: list[Problem]) ->
         image, label = images.get(stem), labels.get(stem)
         instances: list[Instance] = []
         if label is not None:
-            instances, found = parse_label_file(label, names)
+            instances, found = parse_label_file(label, names, unknown_uses)
             problems += found
             if image is None:
                 problems.append(Problem("error", label, None, "label without an image",

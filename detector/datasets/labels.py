@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -17,10 +18,12 @@ BOX_ONLY = "segmentation labels needed: export as instance segmentation"
 MIN_NORMALISED_AREA = 1e-7
 
 
-def parse_label_file(path: Path, names: tuple[str | None, ...]) -> tuple[list[Instance], list[Problem]]:
+def parse_label_file(path: Path, names: tuple[str | None, ...],
+                     unknown_uses: Counter | None = None) -> tuple[list[Instance], list[Problem]]:
     """Read ``class x1 y1 x2 y2 ...`` lines; ``names[i]`` is the canonical code of class id i (None if unknown).
 
-    Lines with errors are left out of the returned instances and reported instead.
+    Lines with errors are left out of the returned instances and reported instead; ``unknown_uses``, where given,
+    counts the lines of each class id that names no landmark.
     """
     instances: list[Instance] = []
     problems: list[Problem] = []
@@ -31,14 +34,15 @@ def parse_label_file(path: Path, names: tuple[str | None, ...]) -> tuple[list[In
     for number, raw in enumerate(text.splitlines(), start=1):
         if not raw.strip():
             continue
-        instance, found = _parse_line(path, number, raw.split(), names)
+        instance, found = _parse_line(path, number, raw.split(), names, unknown_uses)
         problems += found
         if instance is not None:
             instances.append(instance)
     return instances, problems
 
 
-def _parse_line(path: Path, number: int, tokens: list[str], names: tuple[str | None, ...]):
+def _parse_line(path: Path, number: int, tokens: list[str], names: tuple[str | None, ...],
+                unknown_uses: Counter | None):
     def error(message: str, fix: str) -> tuple[None, list[Problem]]:
         return None, [Problem("error", path, number, message, fix)]
 
@@ -55,6 +59,8 @@ def _parse_line(path: Path, number: int, tokens: list[str], names: tuple[str | N
                      "use an index into `names` in data.yaml, or add the class there")
     cls = names[int(class_value)]
     if cls is None:
+        if unknown_uses is not None:
+            unknown_uses[int(class_value)] += 1
         return error(f"class id {int(class_value)} names no landmark", f"read class {int(class_value)} as a pole with "
                      "`--rename` (data.yaml's message for it says how), or delete this line")
     if len(coords) % 2:
