@@ -14,7 +14,8 @@ import pytest
 from calibration.fit import WALK_RELATIVE_STD, calibrate, fit_power_law
 from calibration.run import load_calibration
 from calibration.samples import measure_samples, open_ranged
-from detector.cli import FALLBACK_CONF, main
+from detector.cli import main
+from detector.cli.evaluation_commands import FALLBACK_CONF
 from detector.datasets import load_dataset
 from detector.datasets.truth import load_truth
 from detector.evaluation.by_width import label_width_px, recall_by_width, width_bin_names

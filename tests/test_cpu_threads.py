@@ -72,8 +72,9 @@ def test_waiting_threads_sleep_unless_told_all(argv, policy):
     import subprocess
     import sys
 
-    code = ("import os, sys; from detector.cli import build_parser, _choose_wait_policy; "
-            f"_choose_wait_policy(build_parser().parse_args({argv!r}).threads); "
+    code = ("import os, sys; from detector.cli import build_parser; "
+            "from detector.training.openmp_wait import choose_wait_policy; "
+            f"choose_wait_policy(build_parser().parse_args({argv!r}).threads); "
             "print('torch' in sys.modules, os.environ.get('OMP_WAIT_POLICY'))")
     env = {k: v for k, v in os.environ.items() if k != "OMP_WAIT_POLICY"}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)

@@ -174,12 +174,13 @@ def test_check_and_convert_take_the_dataset_as_data_or_as_the_option_every_comma
 
 @pytest.mark.parametrize("command", ["check", "convert", "augment", "split", "train", "calibrate", "evaluate"])
 def test_every_command_that_reads_a_dataset_takes_it_as_data_or_as_the_option(command):
-    from detector.cli import _one_dataset, build_parser
+    from detector.cli import build_parser
+    from detector.cli.arguments import one_dataset
 
     out = [] if command == "check" else ["--out", "result"]
     positional = build_parser().parse_args([command, "export", *out])
     option = build_parser().parse_args([command, "--data", "export", *out])
-    assert _one_dataset(positional) == _one_dataset(option) == Path("export")
+    assert one_dataset(positional) == one_dataset(option) == Path("export")
 
 
 def test_a_logged_check_keeps_its_table_headers_whole(dataset_copy, capsys, monkeypatch):

@@ -19,3 +19,12 @@ def sleep_while_waiting() -> bool:
         return False
     os.environ["OMP_WAIT_POLICY"] = "PASSIVE"
     return True
+
+
+def choose_wait_policy(threads: int | str | None) -> None:
+    """Let OpenMP threads sleep while they wait, by default (None) and for ``--threads shared``; must run before
+    torch loads. Only an explicit ``--threads shared`` says so when it came too late (a caller that loaded torch)."""
+    if threads not in (None, "shared"):
+        return
+    if not sleep_while_waiting() and threads == "shared":
+        print("--threads shared: torch was loaded already, OpenMP keeps its wait policy", file=sys.stderr)

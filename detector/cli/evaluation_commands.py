@@ -1,0 +1,92 @@
+"""The commands that run a model on frames: ``evaluate`` scores it on labelled ones, ``predict`` pre-labels new ones
+or draws its view on a video."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from detector.cli.arguments import add_dataset_argument, add_input_width_argument, confidence, existing
+
+
+#: ``poles evaluate``'s threshold for a model that stores none.
+FALLBACK_CONF = 0.5
+
+
+def add_parsers(sub: argparse._SubParsersAction) -> None:
+    """Add the `evaluate` and `predict` commands to ``sub`` (``run``: the function that runs it)."""
+    evaluate = sub.add_parser("evaluate", help="precision, recall and mask IoU per image on held-out frames")
+    evaluate.add_argument("--model", action="append",
+                          help="a .pt checkpoint (or its `poles train` run folder), an .onnx model, `shipped`, "
+                               "`shipped-int8` or `colour-filter`; "
+                               "repeat to compare several (default: the shipped model)")
+    add_dataset_argument(evaluate, "held-out frames with labels (dataset folder or COCO export)")
+    evaluate.add_argument("--split", default="test", help="split to evaluate (default test)")
+    evaluate.add_argument("--conf", type=confidence,
+                          help="confidence threshold for the counts (default: the model's own, else 0.5)")
+    evaluate.add_argument("--calibration", type=Path, help="calibration.json for range errors "
+                                                           "(default: the one embedded in the ONNX model; for the "
+                                                           "colour filter, the shipped model's colour law)")
+    add_input_width_argument(evaluate, "a .pt checkpoint at 640 unless given; ONNX: ")
+    evaluate.add_argument("--out", type=Path, required=True, help="folder for metrics.json, plots and FP/FN overlays")
+    evaluate.add_argument("--force", action="store_true", help="replace --out if it holds files")
+    evaluate.set_defaults(run=_evaluate)
+
+    predict = sub.add_parser("predict", help="pre-label new frames for Roboflow, or draw a model's view on a video")
+    source = predict.add_mutually_exclusive_group(required=True)
+    source.add_argument("--images", type=Path,
+                        help="folder of unlabelled frames (subfolders too): write pre-annotations to --out")
+    source.add_argument("--video", type=Path, help="video file or folder of frames in order: write an overlay MP4")
+    predict.add_argument("--out", type=Path, required=True, help="dataset folder (--images) or video.mp4 (--video)")
+    predict.add_argument("--model", type=Path, help="ONNX model (default: the shipped model)")
+    predict.add_argument("--conf", type=confidence, help="confidence threshold (default: the model's own)")
+    predict.add_argument("--format", choices=("yolov8", "coco"), default="yolov8", help="pre-annotation layout")
+    add_input_width_argument(predict, "with --video, to see what a robot running it smaller sees: ")
+    predict.add_argument("--force", action="store_true")
+    predict.set_defaults(run=_predict)
+
+
+def _evaluate(args: argparse.Namespace) -> int:
+    from calibration.run import load_calibration
+    from detector.datasets.io import output_folder
+    from detector.evaluation.predictors import make_predictor
+    from detector.evaluation.run import evaluate, print_metrics
+
+    calibration = load_calibration(args.calibration) if args.calibration else None
+    rows = []
+    models = args.model or ["shipped"]
+    predictors = [make_predictor(model, args.imgsz, calibration) for model in models]  # every model checked first
+    for predictor, label in zip(predictors, _column_labels(models, [p.name for p in predictors])):
+        predictor.name = label
+    with output_folder(args.out, args.force, existing(args.data, args.calibration, *map(Path, models))) as folder:
+        for predictor in predictors:
+            out = folder / predictor.name if len(models) > 1 else folder
+            conf = args.conf if args.conf is not None else predictor.operating_conf or FALLBACK_CONF
+            rows.append(evaluate(predictor, args.data, out, args.split, conf))
+    print_metrics(rows)
+    print(f"wrote {args.out} (metrics.json, per_image.png, sweep.png, confusion.png, recall_by_width.png, errors/)")
+    return 0
+
+
+def _column_labels(models: list[str], names: list[str]) -> list[str]:
+    """Each evaluated model's table column and folder: its file name, or, where two share one, ``FOLDER_NAME``
+    (``runs/a/best.onnx`` -> ``a_best.onnx``), numbered where that is shared too; two models never share a folder."""
+    labels = [name if names.count(name) == 1 or not Path(model).parent.name else f"{Path(model).parent.name}_{name}"
+              for model, name in zip(models, names)]
+    return [label if labels[:index].count(label) == 0 else f"{label}-{labels[:index].count(label) + 1}"
+            for index, label in enumerate(labels)]
+
+
+def _predict(args: argparse.Namespace) -> int:
+    from detector.prediction import overlay_video, prelabel
+
+    if args.images is not None:
+        if args.imgsz is not None:
+            raise ValueError("--imgsz is for --video: pre-labels come from the model at its own input size")
+        result = prelabel(args.images, args.out, args.model, args.conf, args.format, args.force)
+        print(f"pre-labelled {result['frames']} frames ({result['poles']} poles, {result['empty']} without) at conf "
+              f"{result['conf']:.2f}: {result['out']} - upload it to Roboflow as pre-annotations, correct, export")
+    else:
+        result = overlay_video(args.video, args.out, args.model, args.conf, args.force, input_width=args.imgsz)
+        print(f"wrote {result['frames']} frames to {result['video']} and the contact sheet {result['sheet']}"
+              + ("" if result["ranges"] else " (no ranges drawn: the model has no calibration for this input width)"))
+    return 0
