@@ -2,11 +2,18 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from detector.cli.arguments import (add_input_width_argument, confidence, existing, finite_number, number_list,
                                     positive_number, whole_number)
+from naoslam.ekf_slam import SlamConfig
+from naoslam.runner import LocalisationConfig, Sequence
 from naoslam.sim import PATHS, SimConfig
+
+if TYPE_CHECKING:
+    from detector.slam.sequences import FrontEnd
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
@@ -101,51 +108,17 @@ def _slam(args: argparse.Namespace) -> int:
     from detector.slam.comparison import BACKENDS, compare_backends, print_comparison
     from detector.slam.outputs import write_outputs
     from detector.slam.reference import smooth
-    from detector.slam.sequences import FrontEnd, read_pole_map, recorded_sequence, sim_sequence, utias_sequence
+    from detector.slam.sequences import FrontEnd
     from naoslam.atomic import write_json
-    from naoslam.ekf_slam import SlamConfig
-    from naoslam.runner import LocalisationConfig, run_slam
+    from naoslam.runner import run_slam
 
     calibration = load_calibration(args.calibration) if args.calibration else None
     frontend = args.frontend or ("shipped" if args.frames else None)
     if args.imgsz is not None and frontend in (None, "colour-filter"):
         raise ValueError("--imgsz is a model's input width: give --frontend model.onnx or shipped")
     front_end = FrontEnd(frontend, calibration, args.conf, args.imgsz) if frontend else None
-    if args.sim:
-        def make(seed: int):
-            sim = SimConfig(path=args.sim, duration_s=90.0 if args.duration is None else args.duration, seed=seed,
-                            false_positive_rate=args.false_positive_rate, confusion_rate=args.confusion_rate,
-                            lookalikes=args.lookalikes, stride_scale=args.odometry_bias,
-                            front_end_hz=args.frame_rate)
-            return sim_sequence(sim, front_end, camera_pose=not args.no_camera_pose)
-    elif args.utias:
-        def make(seed: int):
-            return utias_sequence(args.utias, args.duration)
-    else:
-        if not args.odometry:
-            raise ValueError("--frames needs --odometry: a CSV t,x,y,theta of the same recording")
-        if args.duration is not None:
-            raise ValueError("--duration is for --sim and --utias: a recording runs whole - give --frames a folder "
-                             "of the part you want")
-
-        def make(seed: int):
-            return recorded_sequence(args.frames, args.odometry, front_end, args.time_offset,
-                                     camera_pose=not args.no_camera_pose)
-    gate = None if args.no_gate else args.gate
-    if args.map:
-        if args.map == "true" and not args.sim:
-            raise ValueError("--map true is a simulated walk's own map: give --sim, or a CSV class,x,y of where your "
-                             "poles stand")
-        config = LocalisationConfig(information_form=args.eif, self_calibrate=not args.no_self_calibration,
-                                    gate=gate, landmarks=None if args.map == "true" else read_pole_map(args.map))
-    elif args.eif:
-        raise ValueError("--eif is a localiser: give --map with where the poles stand")
-    else:
-        association = args.association or ("class" if args.utias else "nearest")
-        config = SlamConfig(linearisation={"ekf": "standard"}.get(args.backend, args.backend),
-                            outlier_filter=args.outlier_filter, gate=gate, min_views=args.min_views,
-                            min_separation_m=args.min_separation, association=association,
-                            self_calibrate=not args.no_self_calibration)
+    make = _sequence_maker(args, front_end)
+    config = _filter_config(args)
     map_file = Path(args.map) if args.map and args.map != "true" else None
     inputs = (args.utias, args.frames, args.odometry, args.calibration, Path(frontend) if frontend else None, map_file)
     start_std = (args.start_std[0], args.start_std[0], args.start_std[1])
@@ -164,3 +137,46 @@ def _slam(args: argparse.Namespace) -> int:
     if rows is not None:
         print_comparison(rows, f"back ends on {sequence.name} ({len(seeds)} seed(s))")
     return 0
+
+
+def _sequence_maker(args: argparse.Namespace, front_end: FrontEnd | None) -> Callable[[int], Sequence]:
+    """What the filter runs on, per seed: a simulated walk, a UTIAS log or a recording (the same for every seed)."""
+    from detector.slam.sequences import recorded_sequence, sim_sequence, utias_sequence
+
+    if args.sim:
+        def make(seed: int) -> Sequence:
+            sim = SimConfig(path=args.sim, duration_s=90.0 if args.duration is None else args.duration, seed=seed,
+                            false_positive_rate=args.false_positive_rate, confusion_rate=args.confusion_rate,
+                            lookalikes=args.lookalikes, stride_scale=args.odometry_bias,
+                            front_end_hz=args.frame_rate)
+            return sim_sequence(sim, front_end, camera_pose=not args.no_camera_pose)
+        return make
+    if args.utias:
+        return lambda seed: utias_sequence(args.utias, args.duration)
+    if not args.odometry:
+        raise ValueError("--frames needs --odometry: a CSV t,x,y,theta of the same recording")
+    if args.duration is not None:
+        raise ValueError("--duration is for --sim and --utias: a recording runs whole - give --frames a folder "
+                         "of the part you want")
+    return lambda seed: recorded_sequence(args.frames, args.odometry, front_end, args.time_offset,
+                                          camera_pose=not args.no_camera_pose)
+
+
+def _filter_config(args: argparse.Namespace) -> SlamConfig | LocalisationConfig:
+    """The back end the flags ask for: EKF or EIF localisation on a known map (``--map``), else EKF SLAM."""
+    from detector.slam.sequences import read_pole_map
+
+    gate = None if args.no_gate else args.gate
+    if args.map:
+        if args.map == "true" and not args.sim:
+            raise ValueError("--map true is a simulated walk's own map: give --sim, or a CSV class,x,y of where your "
+                             "poles stand")
+        return LocalisationConfig(information_form=args.eif, self_calibrate=not args.no_self_calibration,
+                                  gate=gate, landmarks=None if args.map == "true" else read_pole_map(args.map))
+    if args.eif:
+        raise ValueError("--eif is a localiser: give --map with where the poles stand")
+    association = args.association or ("class" if args.utias else "nearest")
+    return SlamConfig(linearisation={"ekf": "standard"}.get(args.backend, args.backend),
+                      outlier_filter=args.outlier_filter, gate=gate, min_views=args.min_views,
+                      min_separation_m=args.min_separation, association=association,
+                      self_calibrate=not args.no_self_calibration)
