@@ -8,12 +8,12 @@ from typing import TYPE_CHECKING
 
 from detector.cli.arguments import (add_input_width_argument, confidence, existing, finite_number, number_list,
                                     positive_number, whole_number)
-from naoslam.ekf_slam import SlamConfig
-from naoslam.runner import LocalisationConfig, Sequence
 from naoslam.sim import PATHS, SimConfig
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the filters load when a run needs them, not with every `poles` command
     from detector.slam.sequences import FrontEnd
+    from naoslam.ekf_slam import SlamConfig
+    from naoslam.runner import LocalisationConfig, Sequence
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
@@ -165,6 +165,8 @@ def _sequence_maker(args: argparse.Namespace, front_end: FrontEnd | None) -> Cal
 def _filter_config(args: argparse.Namespace) -> SlamConfig | LocalisationConfig:
     """The back end the flags ask for: EKF or EIF localisation on a known map (``--map``), else EKF SLAM."""
     from detector.slam.sequences import read_pole_map
+    from naoslam.ekf_slam import SlamConfig
+    from naoslam.runner import LocalisationConfig
 
     gate = None if args.no_gate else args.gate
     if args.map:
