@@ -29,7 +29,8 @@ def _problems(root: Path, severity: str = "error"):
 
 @pytest.mark.parametrize("name, code", [
     ("BP", "bp"), ("b-p", "bp"), ("Blue over Pink", "bp"), ("sky blue / pink", "bp"), ("pink/green", "pg"),
-    ("pole_bp", "bp"), ("PY pole", "py"), ("landmark-gp", "gp"),
+    ("pole_bp", "bp"), ("PY pole", "py"), ("landmark-gp", "gp"), ("BluePink", "bp"), ("YELLOWPINK", "yp"),
+    ("PinkSkyBlue", "pb"),
     ("green", None), ("ball-pole", None), ("bp or pb", None), ("blue pole bp", None), ("pink-pink", None),
 ])
 def test_class_names_map_to_codes_or_to_none(name, code):

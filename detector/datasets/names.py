@@ -13,25 +13,26 @@ from detector.datasets.model import Problem
 from naoslam.landmarks import CLASSES
 
 _COLOUR_LETTER = {"pink": "p", "magenta": "p", "blue": "b", "skyblue": "b", "cyan": "b", "yellow": "y", "green": "g"}
+#: A colour word, also where names run words together ("BluePink"); the longer "skyblue" is tried before "blue".
+_COLOUR_WORD = re.compile("|".join(sorted(_COLOUR_LETTER, key=len, reverse=True)))
 
 
 def canonical_class(name: str) -> str | None:
     """The canonical code for a dataset's class name, or None when it names no landmark.
 
     Accepts the codes themselves in any case (``"BP"``), with separators (``"b-p"``), beside other words
-    (``"pole_bp"``, ``"BP pole"``), and colour words top band first (``"blue-pink"``, ``"Blue over Pink"``,
-    ``"sky blue / pink"``).
+    (``"pole_bp"``, ``"BP pole"``), and colour words top band first, apart or run together (``"blue-pink"``,
+    ``"Blue over Pink"``, ``"sky blue / pink"``, ``"BluePink"``).
     """
     text = str(name).strip().lower()
     compact = re.sub(r"[^a-z]", "", text)
     if compact in CLASSES:
         return compact
-    words = re.findall(r"[a-z]+", text.replace("sky blue", "skyblue"))
-    letters = [_COLOUR_LETTER[w] for w in words if w in _COLOUR_LETTER]
+    letters = [_COLOUR_LETTER[word] for word in _COLOUR_WORD.findall(text.replace("sky blue", "skyblue"))]
     if letters:
         code = "".join(letters)
         return code if code in CLASSES else None
-    codes = [w for w in words if w in CLASSES]
+    codes = [w for w in re.findall(r"[a-z]+", text) if w in CLASSES]
     return codes[0] if len(codes) == 1 else None
 
 
