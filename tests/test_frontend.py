@@ -15,6 +15,7 @@ from export.verify import compare, frontend_predict, ultralytics_predict
 from naoslam.camera import CameraPose
 from naoslam.colour_filter import ColourFilter
 from naoslam.detector import Detection, LandmarkDetector, Letterbox, RotatedBox, _mask_in_box
+from naoslam.frames import bgr_frame
 
 
 def _frames(dataset, n=8):
@@ -96,6 +97,32 @@ def test_grey_and_four_channel_frames_are_accepted(tiny_onnx, synth_dataset):
     via_bgr = detector(cv2.cvtColor(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), cv2.COLOR_GRAY2BGR))
     assert [d.box for d in as_grey] == [d.box for d in via_bgr]
     assert [d.box for d in detector(cv2.cvtColor(frame, cv2.COLOR_BGR2BGRA))] == [d.box for d in detector(frame)]
+
+
+def test_a_two_channel_frame_is_read_as_the_nao_cameras_full_range_yuyv():
+    """JPEG's full-range BT.601: RGB (200, 100, 50) is Y 124, Cb 86, Cr 182; white stays 235 where OpenCV's
+    video-range YUYV conversion would make it 255 and stretch every colour."""
+    yuyv = np.array([[[124, 86], [124, 182]], [[235, 128], [235, 128]]], np.uint8)
+    bgr = bgr_frame(yuyv)
+    assert np.abs(bgr[0].astype(int) - [50, 100, 200]).max() <= 1
+    assert bgr[1].tolist() == [[235, 235, 235]] * 2
+    assert cv2.cvtColor(yuyv, cv2.COLOR_YUV2BGR_YUYV)[1].tolist() == [[255, 255, 255]] * 2
+
+
+def test_a_yuyv_frame_reaches_both_front_ends_as_its_bgr_frame(tiny_onnx, synth_dataset):
+    frame = _frames(synth_dataset, 1)[0]
+    y, cr, cb = cv2.split(cv2.cvtColor(frame, cv2.COLOR_BGR2YCrCb))
+    chroma = np.where(np.arange(frame.shape[1]) % 2 == 0, cb, np.roll(cr, 1, axis=1))  # U of pixel 2k, V of 2k too
+    yuyv = np.dstack([y, chroma])
+    as_bgr = bgr_frame(yuyv)
+    detector = LandmarkDetector(tiny_onnx, conf=0.001)
+    assert [d.box for d in detector(yuyv)] == [d.box for d in detector(as_bgr)]
+    assert [d.name for d in ColourFilter()(yuyv)] == [d.name for d in ColourFilter()(as_bgr)]
+
+
+def test_a_yuyv_frame_of_odd_width_is_refused():
+    with pytest.raises(ValueError, match="YUYV, whose width is even"):
+        bgr_frame(np.zeros((4, 5, 2), np.uint8))
 
 
 @pytest.mark.parametrize("frame", [np.zeros((0, 0, 3), np.uint8), np.zeros((10,), np.uint8)])

@@ -72,6 +72,25 @@ def test_shipped_onnx_finds_a_rendered_pole_without_torch(code, tmp_path):
 
 
 
+def _nao_yuyv(frame_bgr: np.ndarray) -> np.ndarray:
+    """The buffer a Nao camera delivers for this scene, HxWx2: full-range YUV 4:2:2, each pixel pair's chroma
+    averaged (Y0 U Y1 V)."""
+    y, cr, cb = (channel.astype(int) for channel in cv2.split(cv2.cvtColor(frame_bgr, cv2.COLOR_BGR2YCrCb)))
+    chroma = np.empty_like(y)
+    chroma[:, 0::2] = (cb[:, 0::2] + cb[:, 1::2] + 1) // 2
+    chroma[:, 1::2] = (cr[:, 0::2] + cr[:, 1::2] + 1) // 2
+    return np.dstack([y, chroma]).astype(np.uint8)
+
+
+@pytest.mark.parametrize("code, range_m, angle_deg", [("gp", 3.0, 15.0), ("pb", 2.0, -20.0), ("yp", 4.0, 0.0)])
+def test_shipped_onnx_finds_a_rendered_pole_in_the_nao_cameras_yuyv_buffer(code, range_m, angle_deg):
+    image, frame = _rendered_pole(code, range_m, angle_deg, seed=7)
+    truth = frame.poles[0].mask
+    found = LandmarkDetector()(_nao_yuyv(image))
+    assert [f.name for f in found] == [code]
+    assert (found[0].full_mask(truth.shape) & truth).sum() / (found[0].full_mask(truth.shape) | truth).sum() > 0.85
+
+
 def _readme_python_block(containing: str) -> str:
     """The README's first python block that contains ``containing``."""
     readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
