@@ -399,6 +399,9 @@ OTHER_CASES = [
     _plain("slam: missing --calibration", lambda tmp, d: (
         ["slam", "--sim", "square", "--calibration", str(tmp / "none.json"), "--out", str(tmp / "out")], tmp,
         "none.json: no such calibration file")),
+    _plain("evaluate: a split without images", lambda tmp, d: (
+        (shutil.rmtree(d / "test"), ["evaluate", str(d), "--split", "test", "--out", str(tmp / "out")])[1], d,
+        "pick another with --split: train (")),
     _plain("evaluate: unknown model kind", lambda tmp, d: (["evaluate", "--model", "model.h5", "--data", str(d),
                                                             "--out", str(tmp / "out")], d, "model.h5")),
     _plain("calibrate: --plot not a PNG", lambda tmp, d: (

@@ -9,6 +9,7 @@ import numpy as np
 
 from detector.console import show_progress
 from detector.datasets.intake import open_dataset
+from detector.datasets.model import SPLITS
 from detector.datasets.polygons import polygon_to_mask
 from detector.datasets.truth import load_truth
 from detector.evaluation.by_width import recall_by_width, width_bin_names
@@ -29,7 +30,9 @@ def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", c
     dataset = open_dataset(data, progress=progress)
     samples = dataset.split(split)
     if not samples:
-        raise ValueError(f"{data}: the {split!r} split has no images - pick another with --split")
+        held = [f"{name} ({len(dataset.split(name))} images)" for name in SPLITS if dataset.split(name)]
+        raise ValueError(f"{data}: the {split!r} split has no images - pick another with --split: "
+                         f"{', '.join(held) or 'no split has any'}")
     truth = load_truth(dataset)
     images, frames = [], {}
     for sample in show_progress(samples, f"evaluating {predictor.name}", "img", enabled=progress):
