@@ -181,6 +181,15 @@ COCO_CASES = [
 ]
 
 
+def _coco_without_images(tmp: Path, data: Path):
+    """A COCO export whose only JSON lists no image: refused as a YOLOv8 export without images is."""
+    coco = to_coco(data, tmp / "coco")
+    for split in ("valid", "test"):
+        shutil.rmtree(coco / split)
+    coco_edit(coco, lambda d: d.update(images=[], annotations=[]))
+    return COMMAND_ARGV["evaluate"](tmp, coco), coco, "no images found in any split"
+
+
 def _out_case(name: str, out: Callable[[Path, Path], Path], command: str, force: bool = True) -> Case:
     def make(tmp: Path, data: Path):
         argv = COMMAND_ARGV[command](tmp, data)
@@ -399,6 +408,7 @@ OTHER_CASES = [
     _plain("slam: missing --calibration", lambda tmp, d: (
         ["slam", "--sim", "square", "--calibration", str(tmp / "none.json"), "--out", str(tmp / "out")], tmp,
         "none.json: no such calibration file")),
+    _plain("evaluate: COCO without images", _coco_without_images),
     _plain("evaluate: a split without images", lambda tmp, d: (
         (shutil.rmtree(d / "test"), ["evaluate", str(d), "--split", "test", "--out", str(tmp / "out")])[1], d,
         "pick another with --split: train (")),

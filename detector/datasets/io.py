@@ -62,16 +62,25 @@ def load_dataset(path: str | Path, renames: dict[str, str] | None = None) -> Dat
         raise DatasetError([Problem("error", path, None, "no such file or folder", "give the dataset folder (with data.yaml)")])
     yaml_path = path if path.is_file() and path.suffix in (".yaml", ".yml") else path / "data.yaml"
     if yaml_path.is_file():
-        return _load_yolo(yaml_path, renames)
+        return _with_images_required(_load_yolo(yaml_path, renames), yaml_path,
+                                     "the layout is train/images, valid/images, test/images beside data.yaml")
     from detector.datasets.coco import find_coco_files, load_coco
 
     if path.is_dir() and find_coco_files(path):
-        return load_coco(path, renames)
+        return _with_images_required(load_coco(path, renames), path,
+                                     "export the dataset with its images (each split's folder beside its JSON)")
     if path.is_file() and path.suffix.lower() == ".zip":
         raise DatasetError([Problem("error", path, None, "a zip archive, not a dataset folder",
                                     f"unzip it first (unzip {path.name} -d {path.stem}) and give that folder")])
     raise DatasetError([Problem("error", path, None, "neither data.yaml nor a COCO _annotations.coco.json found",
                                 "point to a Roboflow 'YOLOv8' or 'COCO' segmentation export folder")])
+
+
+def _with_images_required(dataset: Dataset, source: Path, fix: str) -> Dataset:
+    """``dataset``, with an error added when no split holds an image (every command needs some)."""
+    if not any(sample.image for sample in dataset.samples):
+        dataset.problems.append(Problem("error", source, None, "no images found in any split", fix))
+    return dataset
 
 
 def _load_yolo(yaml_path: Path, renames: dict[str, str] | None) -> Dataset:
@@ -105,9 +114,6 @@ def _load_yolo(yaml_path: Path, renames: dict[str, str] | None) -> Dataset:
                                         f"the {split} split is empty", f"create {split}/images or fix the path"))
             continue
         samples += _read_split(split, images_dir, names, problems, unknown_uses)
-    if not any(s.image for s in samples):
-        problems.append(Problem("error", yaml_path, None, "no images found in any split",
-                                "the layout is train/images, valid/images, test/images beside data.yaml"))
     if None in names:
         problems += unknown_class_problems(yaml_path, raw_names, names, unknown_uses)
     problems += _duplicate_stems(samples)

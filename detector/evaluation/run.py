@@ -31,8 +31,7 @@ def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", c
     samples = dataset.split(split)
     if not samples:
         held = [f"{name} ({len(dataset.split(name))} images)" for name in SPLITS if dataset.split(name)]
-        raise ValueError(f"{data}: the {split!r} split has no images - pick another with --split: "
-                         f"{', '.join(held) or 'no split has any'}")
+        raise ValueError(f"{data}: the {split!r} split has no images - pick another with --split: {', '.join(held)}")
     truth = load_truth(dataset)
     images, frames = [], {}
     for sample in show_progress(samples, f"evaluating {predictor.name}", "img", enabled=progress):
