@@ -71,7 +71,6 @@ def test_shipped_onnx_finds_a_rendered_pole_without_torch(code, tmp_path):
     assert 0.0 < found["conf"] < 1.0
 
 
-
 def _nao_yuyv(frame_bgr: np.ndarray) -> np.ndarray:
     """The buffer a Nao camera delivers for this scene, HxWx2: full-range YUV 4:2:2, each pixel pair's chroma
     averaged (Y0 U Y1 V)."""
