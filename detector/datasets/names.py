@@ -12,9 +12,9 @@ from pathlib import Path
 from detector.datasets.model import Problem
 from naoslam.landmarks import CLASSES
 
-_COLOUR_LETTER = {"pink": "p", "magenta": "p", "blue": "b", "skyblue": "b", "cyan": "b", "yellow": "y", "green": "g"}
-#: A colour word, also where names run words together ("BluePink"); the longer "skyblue" is tried before "blue".
-_COLOUR_WORD = re.compile("|".join(sorted(_COLOUR_LETTER, key=len, reverse=True)))
+_COLOUR_LETTER = {"pink": "p", "magenta": "p", "blue": "b", "cyan": "b", "yellow": "y", "green": "g"}
+#: A colour word, also where names run words together ("BluePink", "sky blue" and "SkyBlue" read as blue).
+_COLOUR_WORD = re.compile("|".join(_COLOUR_LETTER))
 
 
 def canonical_class(name: str) -> str | None:
@@ -28,7 +28,7 @@ def canonical_class(name: str) -> str | None:
     compact = re.sub(r"[^a-z]", "", text)
     if compact in CLASSES:
         return compact
-    letters = [_COLOUR_LETTER[word] for word in _COLOUR_WORD.findall(text.replace("sky blue", "skyblue"))]
+    letters = [_COLOUR_LETTER[word] for word in _COLOUR_WORD.findall(text)]
     if letters:
         code = "".join(letters)
         return code if code in CLASSES else None

@@ -30,7 +30,7 @@ def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", c
     dataset = open_dataset(data, progress=progress)
     samples = dataset.split(split)
     if not samples:
-        held = [f"{name} ({len(dataset.split(name))} images)" for name in SPLITS if dataset.split(name)]
+        held = [f"{name} ({count} images)" for name in SPLITS if (count := len(dataset.split(name)))]
         raise ValueError(f"{data}: the {split!r} split has no images - pick another with --split: {', '.join(held)}")
     truth = load_truth(dataset)
     images, frames = [], {}
