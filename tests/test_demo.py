@@ -57,10 +57,18 @@ def test_demo_runs_every_stage_writes_the_report_and_resumes(tmp_path, monkeypat
     assert "A square walk of 8 seconds" in page  # the walk it ran
     assert len(re.findall(r'src="data:image/(?:png|jpeg);base64,', page)) >= 10
     assert "not produced" not in page.split("Evaluation on held-out frames")[0]
-    assert page.count('alt="confusion matrix"') == 3  # one per front end
-    assert page.count('alt="recall by pole width"') == 3
+    assert page.count('alt="confusion matrix"') == 4  # one per front end
+    assert page.count('alt="recall by pole width"') == 4
     evaluation = json.loads((out / "evaluation" / "summary.json").read_text())
-    assert [row["model"] for row in evaluation] == ["yolov8n-seg.onnx", "yolov8n-seg-int8.onnx", "colour-filter"]
+    assert [row["model"] for row in evaluation] == ["yolov8n-seg.onnx", "yolov8n-seg-int8.onnx",
+                                                    "shipped-as-installed", "colour-filter"]
+    # The shipped model as installed is counted beside the trained one, and the report says what training bought.
+    f1 = {row["model"]: row["f1"] for row in evaluation}
+    gain = stages["evaluate"]["summary"]["against_shipped"]
+    assert gain["model"] == "yolov8n-seg.onnx" and gain["reference"] == "shipped-as-installed"
+    assert gain["difference"] == pytest.approx(f1["yolov8n-seg.onnx"] - f1["shipped-as-installed"])
+    assert gain["low"] <= gain["difference"] <= gain["high"]
+    assert f"changes F1 by {gain['difference']:+.3f}" in page
     # A second run finds every stage up to date and redoes nothing.
     before = {k: v["seconds"] for k, v in stages.items()}
     assert run_demo(out, TINY) == 0

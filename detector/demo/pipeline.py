@@ -1,6 +1,7 @@
 """``poles demo``: the whole pipeline on the embedded synthetic default, stage by stage, resumable, with a report.
 
-data -> check -> augment -> train -> export (FP32 + INT8) -> calibrate -> evaluate (model, INT8, colour filter)
+data -> check -> augment -> train -> export (FP32 + INT8) -> calibrate -> evaluate (model, INT8, the shipped model,
+colour filter)
 -> slam (image-level walk through the exported model, the colour filter, and the back-end table) -> report.
 """
 from __future__ import annotations
@@ -14,12 +15,15 @@ from rich.table import Table
 from detector.console import make_console
 from detector.demo.stages import StageFailed, StageLedger, file_fingerprint, stage_key
 from detector.training.starting_point import SHIPPED_WEIGHTS, starting_point
+from naoslam.shipped import shipped_path
 
 console = make_console()
 
 #: Fewest labelled validation poles a best-F1 threshold is chosen on. Below it the choice is noise (the v4 demo's 30
 #: frames, 39 poles, picked 0.20 where its test frames peak at 0.55), so the starting model's threshold stays.
 MIN_TUNING_POLES = 200
+#: The evaluation row (and folder) of the shipped model as installed, beside the models the demo trained.
+REFERENCE = "shipped-as-installed"
 
 
 @dataclass(frozen=True)
@@ -138,7 +142,7 @@ def _stages(ledger: StageLedger, out: Path, budget: Budget, seed: int) -> dict:
                                                          budget, seed))
     starting_conf = _starting_conf(budget.models[0]) if budget.conf is None else None
     evaluate_key = stage_key(calibration=calibration_key, conf=budget.conf, min_poles=MIN_TUNING_POLES,
-                             starting_conf=starting_conf)
+                             starting_conf=starting_conf, reference=file_fingerprint(shipped_path()))
     results["evaluate"] = ledger.run("evaluate", evaluate_key, [out / "evaluation" / "summary.json"],
                                      lambda: _evaluate(out / "evaluation", [p for p, _ in models.values()], data,
                                                        out / "calibration" / "calibration.json", budget,
@@ -228,10 +232,12 @@ def _calibrate(folder: Path, models: list[Path], budget: Budget, seed: int) -> d
 
 def _evaluate(folder: Path, models: list[Path], data: Path, calibration_json: Path, budget: Budget,
               starting_conf: float | None) -> dict:
-    """Evaluate every model and the colour filter into ``folder``, replaced whole (no overlay of an earlier run
-    stays beside this one's)."""
+    """Evaluate every model, the shipped model as installed (``REFERENCE``) and the colour filter into ``folder``,
+    replaced whole (no overlay of an earlier run stays beside this one's). ``against_shipped``: the first model's F1
+    less the shipped model's on the same test frames, with its 95 % interval over frames: what the training bought."""
     from calibration.run import load_calibration
     from detector.datasets.io import output_folder
+    from detector.evaluation.paired import f1_difference
     from detector.evaluation.predictors import make_predictor
     from detector.evaluation.run import evaluate
     from export.onnx_export import int8_path
@@ -243,15 +249,19 @@ def _evaluate(folder: Path, models: list[Path], data: Path, calibration_json: Pa
         if conf is None:  # chosen on the validation split, never on the test frames
             validation = evaluate(make_predictor(str(models[0])), data, tmp / "validation", "valid", 0.5)
             conf, conf_source = operating_threshold(validation, starting_conf)
-        rows = []
-        candidates = [str(p) for m in models for p in (m, int8_path(m))] + ["colour-filter"]
-        for model in candidates:
-            predictor = make_predictor(model, calibration=calibration)
+        rows, per_image = [], {}
+        predictors = [make_predictor(str(p), calibration=calibration) for m in models for p in (m, int8_path(m))]
+        reference = make_predictor("shipped")  # with its own calibration: the demo's was fitted on the new masks
+        reference.name = REFERENCE
+        for predictor in [*predictors, reference, make_predictor("colour-filter", calibration=calibration)]:
             metrics = evaluate(predictor, data, tmp / predictor.name, "test", conf)
+            per_image[predictor.name] = metrics["per_image"]
             rows.append({k: v for k, v in metrics.items() if k not in ("sweep", "per_image")}
                         | {"folder": str(folder / predictor.name)})
         write_json(tmp / "summary.json", rows)
-    return {"rows": rows, "conf": conf, "conf_source": conf_source}
+    gain = f1_difference(per_image[REFERENCE], per_image[predictors[0].name])
+    return {"rows": rows, "conf": conf, "conf_source": conf_source,
+            "against_shipped": {"model": predictors[0].name, "reference": REFERENCE, **asdict(gain)}}
 
 
 def operating_threshold(validation: dict, starting_conf: float | None) -> tuple[float, str]:
@@ -317,6 +327,9 @@ def _print_headlines(results: dict) -> None:
         table.add_row(f"{row['model']} on held-out synthetic frames",
                       f"precision {100 * row['precision']:.1f} %, recall {100 * row['recall']:.1f} %"
                       + (f", mask IoU {row['mean_iou']:.3f}" if row.get("mean_iou") is not None else ""))
+    gain = results["evaluate"]["against_shipped"]
+    table.add_row(f"{gain['model']} against {gain['reference']}",
+                  f"F1 {gain['difference']:+.3f} (95 % over frames {gain['low']:+.3f} to {gain['high']:+.3f})")
     for name in ("model", "colour filter"):
         metrics = results["slam"][name]["metrics"]
         figure = ", ".join(f"{k.replace('_', ' ')} {metrics[k]['mean']:.3f} m" for k in
