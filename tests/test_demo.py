@@ -68,6 +68,7 @@ def test_demo_runs_every_stage_writes_the_report_and_resumes(tmp_path, monkeypat
     assert gain["model"] == "yolov8n-seg.onnx" and gain["reference"] == "shipped-as-installed"
     assert gain["difference"] == pytest.approx(f1["yolov8n-seg.onnx"] - f1["shipped-as-installed"])
     assert gain["low"] <= gain["difference"] <= gain["high"]
+    assert gain["reference_conf"] == LandmarkDetector().stored_conf
     assert f"changes F1 by {gain['difference']:+.3f}" in page
     # A second run finds every stage up to date and redoes nothing.
     before = {k: v["seconds"] for k, v in stages.items()}

@@ -234,9 +234,10 @@ def _calibrate(folder: Path, models: list[Path], budget: Budget, seed: int) -> d
 
 def _evaluate(folder: Path, models: list[Path], data: Path, calibration_json: Path, budget: Budget,
               starting_conf: float | None) -> dict:
-    """Evaluate every model, the shipped model as installed (``REFERENCE``) and the colour filter into ``folder``,
-    replaced whole (no overlay of an earlier run stays beside this one's). ``against_shipped``: the first model's F1
-    less the shipped model's on the same test frames, with its 95 % interval over frames: what the training bought."""
+    """Evaluate every model, the shipped model as installed (``REFERENCE``, at its own threshold) and the colour filter
+    into ``folder``, replaced whole (no overlay of an earlier run stays beside this one's). ``against_shipped``: the
+    first model's F1 less the shipped model's on the same test frames, with its 95 % interval over frames: what the
+    training bought."""
     from calibration.run import load_calibration
     from detector.datasets.io import output_folder
     from detector.evaluation.paired import f1_difference
@@ -256,14 +257,16 @@ def _evaluate(folder: Path, models: list[Path], data: Path, calibration_json: Pa
         reference = make_predictor("shipped")  # with its own calibration: the demo's was fitted on the new masks
         reference.name = REFERENCE
         for predictor in [*predictors, reference, make_predictor("colour-filter", calibration=calibration)]:
-            metrics = evaluate(predictor, data, tmp / predictor.name, "test", conf)
+            own_conf = reference.operating_conf if predictor is reference else None
+            metrics = evaluate(predictor, data, tmp / predictor.name, "test", own_conf or conf)
             per_image[predictor.name] = metrics["per_image"]
             rows.append({k: v for k, v in metrics.items() if k not in ("sweep", "per_image")}
                         | {"folder": str(folder / predictor.name)})
         write_json(tmp / "summary.json", rows)
     gain = f1_difference(per_image[REFERENCE], per_image[predictors[0].name])
     return {"rows": rows, "conf": conf, "conf_source": conf_source,
-            "against_shipped": {"model": predictors[0].name, "reference": REFERENCE, **asdict(gain)}}
+            "against_shipped": {"model": predictors[0].name, "reference": REFERENCE,
+                                "reference_conf": reference.operating_conf or conf, **asdict(gain)}}
 
 
 def operating_threshold(validation: dict, starting_conf: float | None) -> tuple[float, str]:

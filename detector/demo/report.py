@@ -168,7 +168,8 @@ def _against_shipped(gain: dict) -> str:
     """What the training bought: the trained model's F1 less the shipped model's, as installed, on the same frames."""
     verdict = ("better than" if gain["low"] > 0 else "worse than" if gain["high"] < 0 else
                "not distinguishable from")
-    return (f"<p>Against the shipped model as installed ({html.escape(gain['reference'])}), "
+    return (f"<p>Against the shipped model as installed ({html.escape(gain['reference'])}, at its own threshold "
+            f"{gain['reference_conf']:.2f}), "
             f"{html.escape(gain['model'])} changes F1 by "
             f"{gain['difference']:+.3f} (95 % interval over these frames {gain['low']:+.3f} to {gain['high']:+.3f}): "
             f"{verdict} it. Keep whichever scores better on your own held-out frames; on rendered frames like its "
