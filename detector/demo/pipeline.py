@@ -256,9 +256,10 @@ def _evaluate(folder: Path, models: list[Path], data: Path, calibration_json: Pa
         predictors = [make_predictor(str(p), calibration=calibration) for m in models for p in (m, int8_path(m))]
         reference = make_predictor("shipped")  # with its own calibration: the demo's was fitted on the new masks
         reference.name = REFERENCE
+        reference_conf = reference.operating_conf or conf
         for predictor in [*predictors, reference, make_predictor("colour-filter", calibration=calibration)]:
-            own_conf = reference.operating_conf if predictor is reference else None
-            metrics = evaluate(predictor, data, tmp / predictor.name, "test", own_conf or conf)
+            metrics = evaluate(predictor, data, tmp / predictor.name, "test",
+                               reference_conf if predictor is reference else conf)
             per_image[predictor.name] = metrics["per_image"]
             rows.append({k: v for k, v in metrics.items() if k not in ("sweep", "per_image")}
                         | {"folder": str(folder / predictor.name)})
@@ -266,7 +267,7 @@ def _evaluate(folder: Path, models: list[Path], data: Path, calibration_json: Pa
     gain = f1_difference(per_image[REFERENCE], per_image[predictors[0].name])
     return {"rows": rows, "conf": conf, "conf_source": conf_source,
             "against_shipped": {"model": predictors[0].name, "reference": REFERENCE,
-                                "reference_conf": reference.operating_conf or conf, **asdict(gain)}}
+                                "reference_conf": reference_conf, **asdict(gain)}}
 
 
 def operating_threshold(validation: dict, starting_conf: float | None) -> tuple[float, str]:
