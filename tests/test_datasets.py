@@ -8,13 +8,17 @@ import shutil
 import sys
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from detector.cli import main
 from detector.datasets import DatasetError, load_dataset, write_dataset
 from detector.datasets.check import check_dataset, write_fixed_copy
 from detector.datasets.intake import open_dataset
+from detector.datasets.jpeg import truncated_jpeg
 from detector.datasets.names import canonical_class
 from naoslam.landmarks import CLASSES
 
@@ -103,6 +107,27 @@ def test_corrupt_and_truncated_images(dataset_copy):
     assert any(p.path == images[0] and "cannot be decoded" in p.message for p in report.errors)
     assert any(p.path == images[1] and "truncated" in p.message for p in report.errors)
 
+
+
+def test_bytes_after_the_end_marker_are_no_problem_and_fix_copies_the_image_as_it_is(dataset_copy, tmp_path):
+    """A camera that saves its fixed-size capture buffer pads the JPEG after its end marker: the image is whole."""
+    image = sorted((dataset_copy / "train" / "images").glob("*.jpg"))[0]
+    padded = image.read_bytes() + bytes(256)
+    image.write_bytes(padded)
+    report = check_dataset(dataset_copy, progress=False)
+    assert [p.message for p in report.problems if p.path == image] == []
+    write_fixed_copy(report, tmp_path / "clean")
+    assert (tmp_path / "clean" / "train" / "images" / image.name).read_bytes() == padded
+
+
+@settings(max_examples=60, deadline=None)
+@given(cut=st.floats(0.0, 1.0, exclude_max=True), progressive=st.booleans(),
+       padding=st.binary(max_size=64).map(lambda b: b.replace(b"\xff", b"")))
+def test_a_jpeg_is_truncated_exactly_when_its_data_stop_before_the_end_marker(cut, padding, progressive):
+    frame = cv2.GaussianBlur(np.random.default_rng(3).integers(0, 256, (96, 128, 3), np.uint8), (7, 7), 2)
+    data = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_PROGRESSIVE, int(progressive)])[1].tobytes()
+    assert not truncated_jpeg(data + padding)
+    assert truncated_jpeg(data[:3 + int(cut * (len(data) - 4))])
 
 def test_duplicate_stems_within_and_across_splits(dataset_copy):
     train_image = sorted((dataset_copy / "train" / "images").glob("*.jpg"))[0]

@@ -13,6 +13,7 @@ from rich.table import Table
 
 from detector.console import make_console, show_progress
 from detector.datasets.io import DatasetWriter, load_dataset
+from detector.datasets.jpeg import truncated_jpeg
 from detector.datasets.labels import BOX_ONLY
 from detector.datasets.model import SPLITS, Dataset, DatasetError, Problem, Sample
 from detector.datasets.orientation import UPRIGHT, encoded_orientation
@@ -79,7 +80,7 @@ def _image_size(sample: Sample, problems: list[Problem]) -> tuple[int, int] | No
         problems.append(Problem("error", sample.image, None, f"cannot be read ({exc.strerror})", "replace it with an image"))
         return None
     image = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
-    truncated = data[:3].tobytes() == b"\xff\xd8\xff" and data[-2:].tobytes() != b"\xff\xd9"
+    truncated = truncated_jpeg(data.tobytes())
     if image is None:
         what = "JPEG is truncated (no end marker) and" if truncated else "image"
         problems.append(Problem("error", sample.image, None, f"{what} cannot be decoded (corrupt or not an image)",
@@ -196,7 +197,7 @@ def _repaired_image(path: Path) -> bytes | Path:
     """A truncated JPEG re-encoded from what decodes, an image stored turned written upright without its EXIF
     tag (OpenCV writes none), anything else the file itself."""
     data = np.fromfile(path, np.uint8)
-    truncated = path.suffix.lower() in (".jpg", ".jpeg") and data[-2:].tobytes() != b"\xff\xd9"
+    truncated = truncated_jpeg(data.tobytes())
     if not truncated and encoded_orientation(data.tobytes()) == UPRIGHT:
         return path
     quality = [cv2.IMWRITE_JPEG_QUALITY, 95] if path.suffix.lower() in (".jpg", ".jpeg") else []
