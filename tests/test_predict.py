@@ -105,6 +105,22 @@ def test_a_bad_frame_is_refused_before_the_model_runs(command, frames, tmp_path,
     assert list(tmp_path.iterdir()) == [folder]
 
 
+
+def test_a_frame_cut_short_that_opencv_would_read_grey_is_refused(frames, tmp_path, model_calls, capsys):
+    """A robot that powers off while writing leaves most of a JPEG: ``cv2.imread`` returns it, its bottom grey."""
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    data = (frames / "02_yp.jpg").read_bytes()
+    (folder / "02_yp.jpg").write_bytes(data[: len(data) * 9 // 10])
+    assert cv2.imread(str(folder / "02_yp.jpg")) is not None
+    (folder / "03_pb.jpg").write_bytes((frames / "03_pb.jpg").read_bytes() + bytes(64))  # a capture buffer's padding
+    assert main(["predict", "--images", str(folder), "--out", str(tmp_path / "out")]) == 2
+    assert f"{folder / '02_yp.jpg'}: cannot be decoded whole (a truncated JPEG" in capsys.readouterr().err
+    assert model_calls == []
+    (folder / "02_yp.jpg").unlink()
+    assert main(["predict", "--images", str(folder), "--out", str(tmp_path / "out")]) == 0
+    assert set(classes_by_image(tmp_path / "out")) == {"03_pb"}
+
 def test_prelabel_refuses_an_existing_output_before_the_model_runs(frames, tmp_path, model_calls, capsys):
     out = tmp_path / "prelabels"
     out.mkdir()

@@ -12,8 +12,10 @@ from pathlib import Path
 from types import TracebackType
 
 import cv2
+import numpy as np
 import yaml
 
+from detector.datasets.jpeg import truncated_jpeg
 from detector.datasets.labels import format_label_line, parse_label_file
 from detector.datasets.model import SPLITS, Dataset, DatasetError, Instance, Problem, Sample
 from detector.datasets.names import class_codes, unknown_class_problems
@@ -26,13 +28,27 @@ YAML_SPLIT_KEYS = {"train": "train", "val": "valid", "test": "test"}
 
 
 def require_decodable(paths: list[Path]) -> None:
-    """Refuse a list of frames before a long run over them starts if any cannot be decoded, naming the first and
-    counting the rest, so a bad frame late in a recording costs a few seconds of decoding, not the run's work."""
-    bad = [path for path in paths if cv2.imread(str(path), cv2.IMREAD_COLOR) is None]
-    if bad:
-        more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
-        raise ValueError(f"{bad[0]}{more}: cannot be decoded as an image - remove it or re-save it; "
-                         "nothing was written")
+    """Refuse a list of frames before a long run over them starts if any cannot be decoded whole, naming the first
+    and counting the rest, so a bad frame late in a recording costs a few seconds of decoding, not the run's work.
+    A truncated JPEG is refused too: OpenCV reads it from its file with the missing rows grey and one libjpeg
+    warning, and a model would be run on that."""
+    faults = [(path, fault) for path in paths if (fault := _decoding_fault(path))]
+    if faults:
+        (first, fault), more = faults[0], f" (and {len(faults) - 1} more)" if len(faults) > 1 else ""
+        raise ValueError(f"{first}{more}: {fault} - remove it or re-save it; nothing was written")
+
+
+def _decoding_fault(path: Path) -> str | None:
+    """Why a frame's file cannot be decoded whole, or None when it can."""
+    try:
+        data = np.fromfile(path, np.uint8)
+    except OSError as exc:
+        return f"cannot be read ({exc.strerror})"
+    if truncated_jpeg(data.tobytes()):
+        return "cannot be decoded whole (a truncated JPEG: its data stop before the end marker)"
+    if not data.size or cv2.imdecode(data, cv2.IMREAD_COLOR) is None:
+        return "cannot be decoded as an image"
+    return None
 
 
 def csv_rows(path: Path, columns: tuple[str, ...]) -> Iterator[tuple[int, dict[str, str]]]:
