@@ -131,7 +131,8 @@ def test_backdrop_dataset_is_reproducible_and_records_its_frames(backdrop_folder
     assert used & {"field.jpg", "small.png"} and all(entry["width"] == 640 for entry in images.values())
 
 
-@pytest.mark.parametrize("case, named", [("empty", "no images"), ("text", "not.jpg"), ("tiny", "tiny.png")])
+@pytest.mark.parametrize("case, named", [("empty", "no images"), ("text", "not.jpg"), ("tiny", "tiny.png"),
+                                         ("cut", "cut.jpg: cannot be decoded whole (a truncated JPEG")])
 def test_bad_background_folders_are_refused_with_the_file_named(case, named, tmp_path, capsys):
     folder = tmp_path / "bg"
     folder.mkdir()
@@ -139,6 +140,9 @@ def test_bad_background_folders_are_refused_with_the_file_named(case, named, tmp
         (folder / "not.jpg").write_text("this is not an image")
     elif case == "tiny":
         _write_frame(folder / "tiny.png", 16, 16, 0)
+    elif case == "cut":  # OpenCV reads it from its file with a grey bottom, which would be composited into frames
+        data = _write_frame(folder / "cut.jpg", 640, 480, 0).read_bytes()
+        (folder / "cut.jpg").write_bytes(data[: len(data) * 9 // 10])
     out = tmp_path / "out"
     assert main(["synth", "--out", str(out), "--images", "2", "--backgrounds", str(folder)]) == 2
     error = capsys.readouterr().err

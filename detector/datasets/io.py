@@ -27,28 +27,34 @@ IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".webp", ".tif", ".tiff"}
 YAML_SPLIT_KEYS = {"train": "train", "val": "valid", "test": "test"}
 
 
-def require_decodable(paths: list[Path]) -> None:
-    """Refuse a list of frames before a long run over them starts if any cannot be decoded whole, naming the first
-    and counting the rest, so a bad frame late in a recording costs a few seconds of decoding, not the run's work.
-    A truncated JPEG is refused too: OpenCV reads it from its file with the missing rows grey and one libjpeg
-    warning, and a model would be run on that."""
-    faults = [(path, fault) for path in paths if (fault := _decoding_fault(path))]
-    if faults:
-        (first, fault), more = faults[0], f" (and {len(faults) - 1} more)" if len(faults) > 1 else ""
-        raise ValueError(f"{first}{more}: {fault} - remove it or re-save it; nothing was written")
-
-
-def _decoding_fault(path: Path) -> str | None:
-    """Why a frame's file cannot be decoded whole, or None when it can."""
+def decode_frame(path: Path) -> np.ndarray:
+    """A frame's file decoded whole as BGR, or a ``ValueError`` that says why it cannot be: unreadable, not an image,
+    or a truncated JPEG, which OpenCV reads from its file with the missing rows grey after one libjpeg warning."""
     try:
         data = np.fromfile(path, np.uint8)
     except OSError as exc:
-        return f"cannot be read ({exc.strerror})"
+        raise ValueError(f"cannot be read ({exc.strerror})") from None
     if truncated_jpeg(data.tobytes()):
-        return "cannot be decoded whole (a truncated JPEG: its data stop before the end marker)"
-    if not data.size or cv2.imdecode(data, cv2.IMREAD_COLOR) is None:
-        return "cannot be decoded as an image"
-    return None
+        raise ValueError("cannot be decoded whole (a truncated JPEG: its data stop before the end marker)")
+    image = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
+    if image is None:
+        raise ValueError("cannot be decoded as an image")
+    return image
+
+
+def require_decodable(paths: list[Path]) -> None:
+    """Refuse a list of frames before a long run over them starts if any cannot be decoded whole (``decode_frame``),
+    naming the first and counting the rest, so a bad frame late in a recording costs a few seconds of decoding, not
+    the run's work."""
+    faults = []
+    for path in paths:
+        try:
+            decode_frame(path)
+        except ValueError as fault:
+            faults.append((path, fault))
+    if faults:
+        (first, fault), more = faults[0], f" (and {len(faults) - 1} more)" if len(faults) > 1 else ""
+        raise ValueError(f"{first}{more}: {fault} - remove it or re-save it; nothing was written")
 
 
 def csv_rows(path: Path, columns: tuple[str, ...]) -> Iterator[tuple[int, dict[str, str]]]:

@@ -16,7 +16,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from detector.datasets.io import IMAGE_SUFFIXES
+from detector.datasets.io import IMAGE_SUFFIXES, decode_frame
 
 #: Smallest backdrop accepted (a pole at range must still be resolvable).
 MIN_WIDTH, MIN_HEIGHT = 160, 120
@@ -64,10 +64,7 @@ def scan_backdrops(folder: Path) -> tuple[Path, ...]:
         raise BackdropError(f"--backgrounds {folder}: no images ({', '.join(sorted(IMAGE_SUFFIXES))}) in it - "
                             "add robot-camera frames without poles")
     for path in paths:
-        image = cv2.imread(str(path), cv2.IMREAD_COLOR)
-        if image is None:
-            raise BackdropError(f"{path}: not a readable image - remove it from the backgrounds folder or re-save it")
-        height, width = image.shape[:2]
+        height, width = _decoded(path).shape[:2]
         if width < MIN_WIDTH or height < MIN_HEIGHT:
             raise BackdropError(f"{path}: {width}x{height} is too small for a backdrop (at least {MIN_WIDTH}x{MIN_HEIGHT}) "
                                 "- remove it or use the camera's full-size frames")
@@ -78,9 +75,7 @@ def scan_backdrops(folder: Path) -> tuple[Path, ...]:
 def load_backdrop(path: Path) -> np.ndarray:
     """The frame as RGB float32 in 0..1, scaled (aspect kept) to between ``RENDER_MIN_WIDTH`` and
     ``RENDER_MAX_WIDTH`` wide."""
-    image = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if image is None:
-        raise BackdropError(f"{path}: not a readable image - remove it from the backgrounds folder")
+    image = _decoded(path)
     height, width = image.shape[:2]
     target = min(max(width, RENDER_MIN_WIDTH), RENDER_MAX_WIDTH)
     if target != width:
@@ -89,6 +84,13 @@ def load_backdrop(path: Path) -> np.ndarray:
     rgb = cv2.cvtColor(image, cv2.COLOR_BGR2RGB).astype(np.float32) / 255.0
     rgb.setflags(write=False)
     return rgb
+
+
+def _decoded(path: Path) -> np.ndarray:
+    try:
+        return decode_frame(path)
+    except ValueError as fault:
+        raise BackdropError(f"{path}: {fault} - remove it from the backgrounds folder or re-save it") from None
 
 
 def frame_cast(backdrop: np.ndarray) -> np.ndarray:
