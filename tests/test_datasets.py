@@ -120,13 +120,24 @@ def test_bytes_after_the_end_marker_are_no_problem_and_fix_copies_the_image_as_i
     assert (tmp_path / "clean" / "train" / "images" / image.name).read_bytes() == padded
 
 
+def _with_exif_thumbnail(jpeg: bytes, thumbnail: bytes) -> bytes:
+    """``jpeg`` with an APP1 segment after its start marker that holds ``thumbnail``, as cameras write EXIF."""
+    payload = b"Exif\x00\x00" + thumbnail
+    return jpeg[:2] + b"\xff\xe1" + (len(payload) + 2).to_bytes(2, "big") + payload + jpeg[2:]
+
+
 @settings(max_examples=60, deadline=None)
-@given(cut=st.floats(0.0, 1.0, exclude_max=True), progressive=st.booleans(),
-       padding=st.binary(max_size=64).map(lambda b: b.replace(b"\xff", b"")))
-def test_a_jpeg_is_truncated_exactly_when_its_data_stop_before_the_end_marker(cut, padding, progressive):
+@given(cut=st.floats(0.0, 1.0, exclude_max=True), progressive=st.booleans(), thumbnail=st.booleans(),
+       padding=st.binary(max_size=64))
+def test_a_jpeg_is_truncated_exactly_when_its_data_stop_before_the_end_marker(cut, padding, progressive, thumbnail):
+    """Padding may hold any bytes, a start-of-scan marker included; a thumbnail's own end marker does not end the
+    image, so a file cut after it is still truncated."""
     frame = cv2.GaussianBlur(np.random.default_rng(3).integers(0, 256, (96, 128, 3), np.uint8), (7, 7), 2)
     data = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_PROGRESSIVE, int(progressive)])[1].tobytes()
+    if thumbnail:
+        data = _with_exif_thumbnail(data, cv2.imencode(".jpg", frame[::8, ::8])[1].tobytes())
     assert not truncated_jpeg(data + padding)
+    assert not truncated_jpeg(data + b"\xff\xda" + padding)
     assert truncated_jpeg(data[:3 + int(cut * (len(data) - 4))])
 
 def test_duplicate_stems_within_and_across_splits(dataset_copy):
