@@ -140,6 +140,14 @@ def test_a_jpeg_is_truncated_exactly_when_its_data_stop_before_the_end_marker(cu
     assert not truncated_jpeg(data + b"\xff\xda" + padding)
     assert truncated_jpeg(data[:3 + int(cut * (len(data) - 4))])
 
+@settings(max_examples=200, deadline=None)
+@given(rest=st.binary(max_size=200))
+def test_any_bytes_after_a_jpeg_start_are_read_to_an_answer(rest):
+    """Corrupt segment lengths and markers in any order end the walk, and without an end marker nothing is whole."""
+    data = b"\xff\xd8\xff" + rest
+    assert truncated_jpeg(data) or b"\xff\xd9" in data
+
+
 def test_duplicate_stems_within_and_across_splits(dataset_copy):
     train_image = sorted((dataset_copy / "train" / "images").glob("*.jpg"))[0]
     shutil.copy(train_image, dataset_copy / "test" / "images" / train_image.name)

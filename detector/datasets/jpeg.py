@@ -4,8 +4,8 @@ from __future__ import annotations
 START_OF_IMAGE = b"\xff\xd8\xff"
 #: Marker codes (the byte after 0xFF) that the walk treats specially.
 END_OF_IMAGE, START_OF_SCAN, FILL, STUFFED = 0xD9, 0xDA, 0xFF, 0x00
-#: Markers without a length field: TEM and the restart markers RST0-RST7.
-STANDALONE = frozenset({0x01, *range(0xD0, 0xD8)})
+#: Markers without a length field: TEM, the restart markers RST0-RST7 and a stray start of image.
+STANDALONE = frozenset({0x01, *range(0xD0, 0xD9)})
 
 
 def truncated_jpeg(data: bytes) -> bool:
