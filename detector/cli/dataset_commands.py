@@ -44,6 +44,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     synth.add_argument("--far-share", type=finite_number,
                        help="share of frames whose poles all stand %g-%g m away, 6-18 px wide at 640x480 "
                             "(default 0: 0.4-9 m, log-uniform)" % SceneConfig.far_range_m)
+    synth.add_argument("--backlight-share", type=finite_number,
+                       help="with --backgrounds, the share of backdrop frames whose poles stand back-lit, dark and "
+                            f"hazed as in front of a window (default {SceneConfig.backlight_share})")
     synth.add_argument("--preview", action="store_true",
                        help="also write preview.png, a contact sheet with labels drawn")
     synth.add_argument("--workers", type=whole_number(0), default=None, help="render processes (default: every core)")
@@ -105,13 +108,16 @@ def _synth(args: argparse.Namespace) -> int:
     if images < 1:
         raise ValueError("--images must be at least 1")
     options = {name: value for name, value in (("nominal_paint_share", args.nominal_paint_share),
-                                               ("far_share", args.far_share)) if value is not None}
+                                               ("far_share", args.far_share),
+                                               ("backlight_share", args.backlight_share)) if value is not None}
     flags = " and ".join("--" + name.replace("_", "-") for name in options)
     if args.walk and options:
         raise ValueError(f"--walk places and paints its poles as `poles slam` renders them: leave out {flags}")
     if args.calibration_shots and options:
         raise ValueError("--calibration-shots stands one nominally painted pole at each set distance: "
                          f"leave out {flags}")
+    if args.backlight_share is not None and args.backgrounds is None:
+        raise ValueError("--backlight-share lights the poles drawn over real frames: give --backgrounds too")
     config = SceneConfig(**options)
     backgrounds = scan_backdrops(args.backgrounds) if args.backgrounds is not None else ()
     job = SynthJob(images, args.seed, *args.size, hfov_deg=args.hfov, calibration_shots=args.calibration_shots,

@@ -28,6 +28,8 @@ RENDER_MIN_WIDTH = 640
 RENDER_MAX_WIDTH = 1280
 #: How far (px) the soft object edges reach into the frame.
 FEATHER_REACH_PX = 3
+#: Share of backdrop frames whose objects are back-lit (a window or a bright hall behind them), by default.
+BACKLIGHT_SHARE = 0.2
 #: The frame's cast is read from its brightest pixels: this top percentile of brightness, clipped pixels excluded.
 WHITE_PATCH_PERCENTILE = 99.0
 CLIPPED = 0.98
@@ -116,14 +118,15 @@ def backdrop_cast(path: Path) -> np.ndarray:
     return cast
 
 
-def sample_look(rng: np.random.Generator, backdrop: np.ndarray, cast: np.ndarray, p_backlight: float = 0.2) -> Look:
+def sample_look(rng: np.random.Generator, backdrop: np.ndarray, cast: np.ndarray,
+                backlight_share: float = BACKLIGHT_SHARE) -> Look:
     """The objects' look for this frame: light from its brightness, ``cast`` (``frame_cast``) for its white balance,
-    maybe back light."""
+    back light with probability ``backlight_share``."""
     means = backdrop.reshape(-1, 3).mean(axis=0)
     luminance = float(means @ np.array([0.299, 0.587, 0.114]))
     light_scale = float(np.clip(luminance / 0.45, 0.45, 1.35) * rng.uniform(0.85, 1.15))
     gain = np.clip(cast, 0.75, 1.3) ** rng.uniform(0.3, 0.8)
-    backlit = rng.random() < p_backlight
+    backlit = rng.random() < backlight_share
     return Look(light_scale=light_scale, channel_gain=tuple(float(g) for g in gain),
                 backlight_gain=float(rng.uniform(0.25, 0.6)) if backlit else 1.0,
                 haze=float(rng.uniform(0.1, 0.35)) if backlit else 0.0,

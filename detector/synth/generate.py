@@ -160,7 +160,8 @@ def _draw_scene(job: SynthJob, index: int, rng: np.random.Generator, backdrop_pa
         camera = PinholeCamera(backdrop.shape[1], backdrop.shape[0], job.hfov_deg)
         floor = floor_of(backdrop_path)
         scene = sample_scene(rng, camera, job.config, goal_posts_in_view=False, floor=floor)
-        scene.backdrop = BackdropShot(backdrop_path, sample_look(rng, backdrop, backdrop_cast(backdrop_path)))
+        look = sample_look(rng, backdrop, backdrop_cast(backdrop_path), job.config.backlight_share)
+        scene.backdrop = BackdropShot(backdrop_path, look)
         return scene
     if job.calibration_shots:
         # Ranges vary fastest, so any number of shots covers every distance.
@@ -237,6 +238,7 @@ def _describe(job: SynthJob) -> dict:
             "focal_px": round(job.camera.focal_px, 3), "calibration_shots": job.calibration_shots, "walk": job.walk,
             "backgrounds": len(job.backgrounds), "backdrop_share": job.backdrop_share,
             "nominal_paint_share": job.config.nominal_paint_share, "far_share": job.config.far_share,
+            "backlight_share": job.config.backlight_share,
             "pole": {"diameter_m": pole.diameter, "band_height_m": pole.band_height, "base_height_m": pole.base_height}}
 
 

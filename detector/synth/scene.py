@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from detector.synth.backdrops import Look
+from detector.synth.backdrops import BACKLIGHT_SHARE, Look
 from detector.synth.background import Room, WallFeature
 from detector.synth.floor import FloorMap, pitch_range_deg
 from detector.synth.objects import (BAND_RGB, PINK, WHITE, YELLOW, Cylinder, Quad, horizontal_rotation, pole,
@@ -43,9 +43,13 @@ class SceneConfig:
     #: often in training. The draw is made only when the share is above 0, so the default frames stay the same.
     far_share: float = 0.0
     far_range_m: tuple[float, float] = (3.0, 9.0)
+    #: Share of the frames drawn over a backdrop whose objects are back-lit: darkened to 25-60 % and hazed towards
+    #: the frame's mean colour, as in front of a window. The ray-cast rooms light their objects themselves.
+    backlight_share: float = BACKLIGHT_SHARE
 
     def __post_init__(self) -> None:
-        for option, share in (("--nominal-paint-share", self.nominal_paint_share), ("--far-share", self.far_share)):
+        for option, share in (("--nominal-paint-share", self.nominal_paint_share), ("--far-share", self.far_share),
+                              ("--backlight-share", self.backlight_share)):
             if not 0.0 <= share <= 1.0:
                 raise ValueError(f"{option} {share} must lie between 0 and 1")
 
