@@ -1,4 +1,4 @@
-"""The README and docs/ name only commands and flags that exist: a renamed flag fails here, not in a user's shell."""
+"""The README and docs/ name only commands, flags and runtime names that exist: a rename fails here, not on a robot."""
 from __future__ import annotations
 
 import argparse
@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+import naoslam
 from detector.cli import build_parser
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -64,3 +65,9 @@ def test_the_readme_quick_start_and_walk_throughs_parse():
     parser = build_parser()
     for line in lines:
         parser.parse_args(shlex.split(line, comments=True)[1:])  # argparse exits (a test error) on a bad flag
+
+
+def test_the_readme_lists_exactly_the_runtime_names_a_robot_program_imports():
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    listed = re.search(r"`naoslam.__all__` lists them: (.+?)\.\n", text, re.S).group(1)
+    assert sorted(re.findall(r"`(\w+)`", listed)) == naoslam.__all__

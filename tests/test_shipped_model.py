@@ -3,8 +3,10 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import cv2
@@ -28,6 +30,25 @@ def test_shipped_files_exist_within_the_size_budget():
     files = [SHIPPED_WEIGHTS, shipped_model(), shipped_model(int8=True)]
     assert sum(p.stat().st_size for p in files) < SIZE_BUDGET
     assert shipped_model(int8=True).stat().st_size < shipped_model().stat().st_size / 2
+
+
+def test_the_wheel_a_robot_installs_carries_the_shipped_files_where_the_code_looks(tmp_path):
+    """`pip install nao-poles` on the robot gets the model: the package data rule and the paths agree byte for byte."""
+    root = Path(__file__).resolve().parents[1]
+    source = tmp_path / "source"  # built from a copy: a wheel build writes build/ and egg-info beside its sources
+    for name in ("pyproject.toml", "README.md"):
+        (source / name).parent.mkdir(parents=True, exist_ok=True)
+        (source / name).write_bytes((root / name).read_bytes())
+    for package in ("detector", "augment", "export", "calibration", "naoslam"):
+        shutil.copytree(root / package, source / package, ignore=shutil.ignore_patterns("__pycache__"))
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation", "-w",
+                    str(tmp_path / "wheel"), str(source)], check=True, capture_output=True)
+    with zipfile.ZipFile(next((tmp_path / "wheel").glob("nao_poles-*.whl"))) as wheel:
+        models = {name for name in wheel.namelist() if name.endswith((".onnx", ".pt"))}
+        shipped = [SHIPPED_WEIGHTS, shipped_model(), shipped_model(int8=True)]
+        assert models == {path.relative_to(root).as_posix() for path in shipped}
+        for path in shipped:
+            assert wheel.read(path.relative_to(root).as_posix()) == path.read_bytes()
 
 
 def test_version_names_the_shipped_model_a_user_runs(capsys):
