@@ -36,11 +36,11 @@ def test_the_wheel_a_robot_installs_carries_the_shipped_files_where_the_code_loo
     """`pip install nao-poles` on the robot gets the model: the package data rule and the paths agree byte for byte."""
     root = Path(__file__).resolve().parents[1]
     source = tmp_path / "source"  # built from a copy: a wheel build writes build/ and egg-info beside its sources
+    source.mkdir()
     for name in ("pyproject.toml", "README.md"):
-        (source / name).parent.mkdir(parents=True, exist_ok=True)
-        (source / name).write_bytes((root / name).read_bytes())
-    for package in ("detector", "augment", "export", "calibration", "naoslam"):
-        shutil.copytree(root / package, source / package, ignore=shutil.ignore_patterns("__pycache__"))
+        shutil.copy(root / name, source / name)
+    for package in (path for path in root.iterdir() if (path / "__init__.py").is_file()):  # pyproject picks from these
+        shutil.copytree(package, source / package.name, ignore=shutil.ignore_patterns("__pycache__"))
     subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation", "-w",
                     str(tmp_path / "wheel"), str(source)], check=True, capture_output=True)
     with zipfile.ZipFile(next((tmp_path / "wheel").glob("nao_poles-*.whl"))) as wheel:
