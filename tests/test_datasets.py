@@ -140,6 +140,7 @@ def test_a_jpeg_is_truncated_exactly_when_its_data_stop_before_the_end_marker(cu
     assert not truncated_jpeg(data + b"\xff\xda" + padding)
     assert truncated_jpeg(data[:3 + int(cut * (len(data) - 4))])
 
+
 @settings(max_examples=200, deadline=None)
 @given(rest=st.binary(max_size=200))
 def test_any_bytes_after_a_jpeg_start_are_read_to_an_answer(rest):
