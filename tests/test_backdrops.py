@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from detector.cli import main
+from detector.datasets.io import load_dataset
 from detector.datasets.polygons import polygon_to_mask
 from detector.synth.backdrops import (BACKLIGHT_SHARE, FEATHER_REACH_PX, RENDER_MAX_WIDTH, RENDER_MIN_WIDTH,
                                       composite, frame_cast, load_backdrop, sample_look, scan_backdrops)
@@ -153,14 +154,13 @@ def test_synth_backlight_share_darkens_the_poles_and_is_recorded(backdrop_folder
     def pole_brightness(share):
         job = SynthJob(6, seed=4, backgrounds=backgrounds, config=SceneConfig(backlight_share=share))
         out = generate_dataset(tmp_path / f"s{share}", job, workers=1, progress=False)
-        annotations = json.loads((out / "annotations.json").read_text())
         values = []
-        for name, entry in annotations["images"].items():
-            image = cv2.imread(str(out / entry["split"] / "images" / name))
-            for line in (out / entry["split"] / "labels" / f"{Path(name).stem}.txt").read_text().splitlines():
-                polygon = np.array(line.split()[1:], float).reshape(-1, 2) * [entry["width"], entry["height"]]
-                values.append(image[polygon_to_mask(polygon, entry["width"], entry["height"])].mean())
-        return annotations["generator"]["backlight_share"], values
+        for sample in load_dataset(out).samples:
+            image = cv2.imread(str(sample.image))
+            height, width = image.shape[:2]
+            values += [image[polygon_to_mask(instance.pixels(width, height), width, height)].mean()
+                       for instance in sample.instances]
+        return json.loads((out / "annotations.json").read_text())["generator"]["backlight_share"], values
     never, lit = pole_brightness(0.0)
     always, dark = pole_brightness(1.0)
     assert (never, always) == (0.0, 1.0) and lit and dark
