@@ -1,6 +1,7 @@
 """The pole model shipped in the package: present, within its size budget, torch-free, found poles, used by default."""
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import shutil
@@ -25,6 +26,8 @@ from naoslam.camera import CameraPose, PinholeCamera
 from naoslam.detector import LandmarkDetector
 from naoslam.shipped import OPERATING_CONF_KEY, shipped_model
 
+REPOSITORY = Path(__file__).resolve().parents[1]
+
 
 def test_shipped_files_exist_within_the_size_budget():
     files = [SHIPPED_WEIGHTS, shipped_model(), shipped_model(int8=True)]
@@ -34,26 +37,23 @@ def test_shipped_files_exist_within_the_size_budget():
 
 def test_the_wheel_a_robot_installs_carries_the_shipped_files_where_the_code_looks(tmp_path):
     """`pip install nao-poles` on the robot gets the model: the package data rule and the paths agree byte for byte."""
-    root = Path(__file__).resolve().parents[1]
     source = tmp_path / "source"  # built from a copy: a wheel build writes build/ and egg-info beside its sources
     source.mkdir()
     for name in ("pyproject.toml", "README.md"):
-        shutil.copy(root / name, source / name)
-    for package in (path for path in root.iterdir() if (path / "__init__.py").is_file()):  # pyproject picks from these
+        shutil.copy(REPOSITORY / name, source / name)
+    for package in (path for path in REPOSITORY.iterdir() if (path / "__init__.py").is_file()):  # pyproject picks here
         shutil.copytree(package, source / package.name, ignore=shutil.ignore_patterns("__pycache__"))
     subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation", "-w",
                     str(tmp_path / "wheel"), str(source)], check=True, capture_output=True)
     with zipfile.ZipFile(next((tmp_path / "wheel").glob("nao_poles-*.whl"))) as wheel:
         models = {name for name in wheel.namelist() if name.endswith((".onnx", ".pt"))}
         shipped = [SHIPPED_WEIGHTS, shipped_model(), shipped_model(int8=True)]
-        assert models == {path.relative_to(root).as_posix() for path in shipped}
+        assert models == {path.relative_to(REPOSITORY).as_posix() for path in shipped}
         for path in shipped:
-            assert wheel.read(path.relative_to(root).as_posix()) == path.read_bytes()
+            assert wheel.read(path.relative_to(REPOSITORY).as_posix()) == path.read_bytes()
 
 
 def test_version_names_the_shipped_model_a_user_runs(capsys):
-    import hashlib
-
     with pytest.raises(SystemExit) as exited:
         main(["--version"])
     assert exited.value.code == 0
@@ -113,7 +113,7 @@ def test_shipped_onnx_finds_a_rendered_pole_in_the_nao_cameras_yuyv_buffer(code,
 
 def _readme_python_block(containing: str) -> str:
     """The README's first python block that contains ``containing``."""
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    readme = (REPOSITORY / "README.md").read_text(encoding="utf-8")
     blocks = [block.split("```", 1)[0] for block in readme.split("```python\n")[1:]]
     return next(block for block in blocks if containing in block)
 
