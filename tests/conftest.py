@@ -1,4 +1,5 @@
-"""Shared fixtures: a small synthetic dataset rendered once per session, and the optional ../shared folder."""
+"""Shared fixtures and paths: a small synthetic dataset rendered once per session, the repository root and the
+optional ../shared folder."""
 from __future__ import annotations
 
 import shutil
@@ -8,7 +9,8 @@ import pytest
 
 from detector.synth.generate import SynthJob, generate_dataset
 
-SHARED = Path(__file__).resolve().parents[1].parent / "shared"
+REPOSITORY = Path(__file__).resolve().parents[1]
+SHARED = REPOSITORY.parent / "shared"
 
 
 @pytest.fixture(scope="session")

@@ -25,8 +25,7 @@ from export.ship import SIZE_BUDGET
 from naoslam.camera import CameraPose, PinholeCamera
 from naoslam.detector import LandmarkDetector
 from naoslam.shipped import OPERATING_CONF_KEY, shipped_model
-
-REPOSITORY = Path(__file__).resolve().parents[1]
+from tests.conftest import REPOSITORY
 
 
 def test_shipped_files_exist_within_the_size_budget():

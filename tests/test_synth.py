@@ -21,8 +21,8 @@ from detector.synth.render import render_scene
 from detector.synth.scene import SceneConfig, calibration_scene, sample_scene
 from detector.synth.walk import frame_steps, render_walk, simulated_walk, walk_camera_poses, walk_frame_steps
 from naoslam.camera import PinholeCamera
+from tests.conftest import REPOSITORY
 
-REPO = Path(__file__).resolve().parents[1]
 
 
 def _files(root: Path) -> dict[str, bytes]:
@@ -186,7 +186,7 @@ def test_runtime_imports_no_training_dependency():
     code = ("import sys, naoslam, naoslam.camera, naoslam.field, naoslam.landmarks;"
             "bad = [m for m in ('torch', 'ultralytics', 'albumentations', 'detector') if m in sys.modules];"
             "sys.exit(repr(bad) if bad else 0)")
-    subprocess.run([sys.executable, "-c", code], check=True, cwd=REPO)
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=REPOSITORY)
 
 
 def test_ray_cast_walls_floor_and_carpet_carry_photo_textures_around_their_paint():
