@@ -108,7 +108,6 @@ def test_corrupt_and_truncated_images(dataset_copy):
     assert any(p.path == images[1] and "truncated" in p.message for p in report.errors)
 
 
-
 def test_bytes_after_the_end_marker_are_no_problem_and_fix_copies_the_image_as_it_is(dataset_copy, tmp_path):
     """A camera that saves its fixed-size capture buffer pads the JPEG after its end marker: the image is whole."""
     image = sorted((dataset_copy / "train" / "images").glob("*.jpg"))[0]
@@ -201,7 +200,6 @@ def test_fix_writes_a_clean_copy_and_leaves_the_input(dataset_copy, tmp_path):
 def test_cli_refuses_fix_without_out(dataset_copy, capsys):
     assert main(["check", str(dataset_copy), "--fix"]) == 2
     assert "never written in place" in capsys.readouterr().err
-
 
 
 def test_check_and_convert_take_the_dataset_as_data_or_as_the_option_every_command_uses(dataset_copy, tmp_path,

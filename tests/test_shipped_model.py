@@ -132,6 +132,7 @@ def test_readme_robot_loop_measures_a_rendered_pole(tmp_path):
     assert float(range_m) == pytest.approx(2.0, rel=0.15)
     assert abs(float(bearing_rad)) < 0.05
 
+
 @pytest.fixture(scope="module")
 def robot_walk():
     """A rendered 20 s walk as a robot gives it: the walk, and per frame the odometry pose, the BGR frame and the

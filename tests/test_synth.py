@@ -24,7 +24,6 @@ from naoslam.camera import PinholeCamera
 from tests.conftest import REPOSITORY
 
 
-
 def _files(root: Path) -> dict[str, bytes]:
     return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
 
