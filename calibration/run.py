@@ -11,7 +11,7 @@ import numpy as np
 from calibration.fit import MIN_NOISE_SIGHTINGS, WALK_RELATIVE_STD, calibrate
 from calibration.samples import MEASURE_CONF, SizeSample, as_arrays, measure_samples, measures_law, open_ranged
 from detector.datasets.io import check_output_file
-from naoslam.atomic import write_json
+from detector.atomic import write_json
 from naoslam.detector import LandmarkDetector
 from naoslam.measurement import RangeCalibration
 
@@ -35,7 +35,7 @@ def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv:
     if input_width is not None and model is None:
         raise ValueError("--imgsz is a model's input width: give --model (label masks have no input width)")
     if embed:
-        from export.onnx_export import read_info
+        from detector.model_files import read_info
 
         for target in embed:
             read_info(target)  # refuse a model that cannot take the calibration before anything is written
@@ -74,7 +74,7 @@ def load_calibration(path: Path) -> RangeCalibration:
 
 def embed_calibration(model: Path, calibration: RangeCalibration) -> Path:
     """Store the calibration in the ONNX model's naoslam metadata (the weights are untouched)."""
-    from export.onnx_export import add_metadata
+    from detector.model_files import add_metadata
 
     return add_metadata(model, calibration=calibration.to_dict())
 

@@ -9,7 +9,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter  # noqa: E402
 
-from naoslam.atomic import atomic_path  # noqa: E402
+from detector.atomic import atomic_path  # noqa: E402
 
 
 def save_figure(fig, png: Path | str, dpi: int = 90) -> Path:

@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 
 from detector.datasets.model import Instance
-from naoslam.atomic import write_bytes
+from detector.atomic import write_bytes
 from naoslam.landmarks import CLASSES
 
 #: One BGR outline colour per class, in canonical order.

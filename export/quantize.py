@@ -18,7 +18,7 @@ import onnx
 from onnxruntime.quantization import CalibrationDataReader, QuantFormat, QuantType, quantize_static
 from onnxruntime.quantization.shape_inference import quant_pre_process
 
-from export.onnx_export import read_info, write_metadata
+from detector.model_files import read_info, write_metadata
 from naoslam.detector import LandmarkDetector
 
 #: Feature convolutions of the head (cv2/cv3/cv4 stages 0 and 1) and the mask prototype branch: quantised.

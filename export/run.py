@@ -10,11 +10,11 @@ import numpy as np
 
 from detector.datasets.intake import open_dataset
 from detector.datasets.io import check_output_file
+from detector.model_files import ultralytics_predict
 from export.onnx_export import NAO_INPUT_HW, export_onnx, int8_path
 from export.quantize import quantize_int8
-from export.verify import (FP32_TOLERANCE, INT8_TOLERANCE, compare, frontend_predict, median_latency_ms,
-                           ultralytics_predict)
-from naoslam.atomic import atomic_path, write_json
+from export.verify import FP32_TOLERANCE, INT8_TOLERANCE, compare, frontend_predict, median_latency_ms
+from detector.atomic import atomic_path, write_json
 from naoslam.detector import valid_confidence
 
 #: Frames used to verify an export, and images used to calibrate INT8.
@@ -43,9 +43,10 @@ class ExportJob:
         if self.out.suffix != ".onnx":
             raise ValueError(f"--out {self.out}: name the ONNX file to write, ending in .onnx, e.g. "
                              f"{self.out.with_name(self.out.name + '.onnx')}; nothing was written")
-        if any(side < 32 or side % 32 for side in self.input_hw):
+        if any(side < 16 or side % 16 for side in self.input_hw):
             raise ValueError(f"--imgsz {self.input_hw[0]} {self.input_hw[1]}: height and width must be positive "
-                             "multiples of the stride 32 (the Nao's frames: 480 640)")
+                             "multiples of the model's stride, 32 for YOLOv8 (the Nao's frames: 480 640) or 16 for "
+                             "robot-p4-seg (240 320)")
         valid_confidence(self.conf)
 
     @property
@@ -70,7 +71,7 @@ def dataset_images(data: Path, splits: tuple[str, ...], limit: int, flag: str) -
 
 def training_dataset(weights: Path) -> Path:
     """The dataset folder a checkpoint was trained on (from its train_args), for when --data is not given."""
-    from detector.training.train import read_checkpoint
+    from detector.model_files import read_checkpoint
 
     data = (read_checkpoint(weights).get("train_args") or {}).get("data")
     if not data or not Path(data).exists():
@@ -89,7 +90,7 @@ def read_frames(paths: list[Path]) -> list[np.ndarray]:
 
 def run_export(job: ExportJob) -> dict:
     """Export, verify, optionally quantise; returns the report (also written to ``job.report_path``)."""
-    from detector.training.train import read_checkpoint
+    from detector.model_files import read_checkpoint
 
     read_checkpoint(job.weights)  # a clear error for a missing file or one that is not a checkpoint
     data = job.data or training_dataset(job.weights)

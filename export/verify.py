@@ -8,35 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from detector.matching import box_iou, greedy_match, mask_iou
+from detector.model_files import FrameDetections
 from naoslam.detector import LandmarkDetector
-
-
-@dataclass(frozen=True)
-class FrameDetections:
-    """Detections of one frame: class ids, scores, xyxy boxes and full-frame boolean masks."""
-
-    class_ids: np.ndarray
-    scores: np.ndarray
-    boxes: np.ndarray
-    masks: np.ndarray
-
-
-def ultralytics_predict(model: Path, frames: list[np.ndarray], input_hw: tuple[int, int],
-                        conf: float) -> list[FrameDetections]:
-    """Ultralytics' own predictions (a .pt on PyTorch, or an .onnx through its AutoBackend) with full-size masks."""
-    from ultralytics import YOLO
-
-    predictor = YOLO(str(model), task="segment")
-    return [ultralytics_frame(predictor, frame, list(input_hw), conf) for frame in frames]
-
-
-def ultralytics_frame(predictor, frame: np.ndarray, imgsz: int | list[int], conf: float) -> FrameDetections:
-    """One frame through a loaded Ultralytics model, masks at the frame's resolution (``retina_masks``)."""
-    result = predictor.predict(frame, imgsz=imgsz, conf=conf, retina_masks=True, device="cpu", verbose=False)[0]
-    masks = (result.masks.data.numpy() > 0.5 if result.masks is not None
-             else np.zeros((0, *frame.shape[:2]), dtype=bool))
-    boxes = result.boxes
-    return FrameDetections(boxes.cls.numpy().astype(int), boxes.conf.numpy(), boxes.xyxy.numpy(), masks)
 
 
 def frontend_predict(model: Path, frames: list[np.ndarray], conf: float) -> list[FrameDetections]:

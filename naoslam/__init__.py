@@ -12,6 +12,7 @@ import importlib
 
 #: Public name -> the module that defines it.
 _PUBLIC = {
+    "FrontEnd": "naoslam.front_end",
     "LandmarkDetector": "naoslam.detector",
     "Detection": "naoslam.detector",
     "shipped_model": "naoslam.shipped",

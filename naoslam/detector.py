@@ -23,14 +23,12 @@ from naoslam.ground import GroundView
 from naoslam.landmarks import CLASSES
 from naoslam.measurement import RangeCalibration
 from naoslam.model_info import ModelInfo
-from naoslam.shipped import OPERATING_CONF_KEY, model_argument, resolve_model, shipped_model
+from naoslam.shipped import OPERATING_CONF_KEY, model_argument, profile_model, resolve_model, shipped_model
 
 #: Ultralytics' letterbox fill value.
 PAD_VALUE = 114
 #: Confidence threshold for a model that stores none (Ultralytics' predict default).
 DEFAULT_CONF = 0.25
-#: Number of mask prototypes of a YOLOv8-seg head.
-MASK_DIM = 32
 
 
 def valid_confidence(conf: float) -> float:
@@ -155,7 +153,8 @@ def load_session(path: Path | str, threads: int | None = None) -> ort.InferenceS
 class LandmarkDetector:
     """Runs a YOLOv8-seg ONNX pole model on BGR frames.
 
-    ``model`` None runs the pole model shipped with naoslam. ``conf`` None uses the threshold stored in the model
+    ``model`` None runs a pole model shipped with naoslam: ``profile="accurate"`` (the default) the YOLOv8n-seg for
+    offline work, ``profile="robot"`` the small one that keeps up with the Nao's camera on its Atom. ``conf`` None uses the threshold stored in the model
     (``operating_conf``), else ``DEFAULT_CONF``. ``classes`` is the class list the caller expects (default the six
     pole codes); a model trained on other names is refused. Pass ``classes=None`` to accept any model.
     ``input_width`` runs a model exported with ``--dynamic`` (the shipped ones are) at a smaller scale than it was
@@ -166,7 +165,9 @@ class LandmarkDetector:
 
     def __init__(self, model: Path | str | None = None, conf: float | None = None, iou: float = 0.7,
                  max_det: int = 300, classes: tuple[str, ...] | None = CLASSES, threads: int | None = None,
-                 engine: str = "onnxruntime", input_width: int | None = None):
+                 engine: str = "onnxruntime", input_width: int | None = None, profile: str | None = None):
+        if model is not None and profile is not None:
+            raise ValueError(f"give a model or a profile, not both (model {model}, profile {profile!r})")
         if engine not in ENGINES:
             raise ValueError(f"engine {engine!r} is not one of {', '.join(ENGINES)}")
         if threads is not None and threads < 1:
@@ -175,7 +176,7 @@ class LandmarkDetector:
             raise ValueError(f"NMS IoU threshold {iou} must lie above 0 and at most 1 (default 0.7)")
         if max_det < 1:
             raise ValueError(f"max_det {max_det}: keep at least 1 detection per frame (default 300)")
-        self.path = resolve_model(model) if model is not None else shipped_model()
+        self.path = resolve_model(model) if model is not None else profile_model(profile or "accurate")
         self.session = load_session(self.path, threads)
         self.info = ModelInfo.from_metadata(self.session.get_modelmeta().custom_metadata_map, self.path)
         if classes is not None and tuple(self.info.classes) != tuple(classes):
@@ -244,14 +245,15 @@ class LandmarkDetector:
         return calibration
 
     def _check_signature(self) -> None:
+        """Refuse a model whose outputs are not a segmentation head for its classes: (1, 4 + nc + nm, N) predictions
+        and (1, nm, h, w) prototypes, nm the number of mask prototypes (32 in YOLOv8-seg, fewer in a robot model)."""
         inputs, outputs = self.session.get_inputs(), self.session.get_outputs()
-        rows = 4 + len(self.info.classes) + MASK_DIM
         shapes = [o.shape for o in outputs]
-        if (len(inputs) != 1 or len(outputs) != 2 or len(shapes[0]) != 3 or shapes[0][1] != rows
-                or len(shapes[1]) != 4 or shapes[1][1] != MASK_DIM):
-            raise ValueError(f"{self.path}: outputs {shapes} are not a YOLOv8 segmentation head for "
-                             f"{len(self.info.classes)} classes (expected (1, {rows}, N) and (1, {MASK_DIM}, h, w)) - "
-                             "export a *-seg model without NMS")
+        nc = len(self.info.classes)
+        if len(inputs) != 1 or len(outputs) != 2 or len(shapes[0]) != 3 or len(shapes[1]) != 4 \
+                or not isinstance(shapes[1][1], int) or shapes[0][1] != 4 + nc + shapes[1][1]:
+            raise ValueError(f"{self.path}: outputs {shapes} are not a YOLOv8 segmentation head for {nc} classes "
+                             f"(expected (1, 4 + {nc} + nm, N) and (1, nm, h, w)) - export a *-seg model without NMS")
 
     @property
     def any_input_size(self) -> bool:
@@ -295,17 +297,23 @@ class LandmarkDetector:
             return self._openvino(blob)
         return self.session.run(None, {self.input_name: blob})
 
-    def __call__(self, frame: np.ndarray, camera_pose: CameraPose | None = None, crop: bool = True) -> list[Detection]:
+    def ground_view(self, frame_hw: tuple[int, int], camera_pose: CameraPose) -> GroundView:
+        """The floor as this detector's camera sees it in a frame of ``frame_hw`` from ``camera_pose``."""
+        return GroundView(PinholeCamera(frame_hw[1], frame_hw[0], self.hfov_deg), camera_pose)
+
+    def __call__(self, frame: np.ndarray, camera_pose: CameraPose | None = None, crop: bool = True,
+                 view: GroundView | None = None) -> list[Detection]:
         """Detections in one BGR frame, best first.
 
         With the camera's ``camera_pose`` (height, pitch, roll; x, y and yaw unused), the ground-plane gate drops
         detections that cannot be a pole standing on the floor (``gate_rejections`` then holds (detection, reason)
         for this frame, ``gate_rejected`` counts them over all frames), and a model exported with ``--dynamic``
         runs only on the band below the horizon, where every pole must be (``crop=False``: the whole frame).
+        ``view``: the frame's ground view when the caller has built it already (``FrontEnd`` shares one per frame).
         """
         frame = bgr_frame(frame)
-        view = None if camera_pose is None else \
-            GroundView(PinholeCamera(frame.shape[1], frame.shape[0], self.hfov_deg), camera_pose)
+        if view is None and camera_pose is not None:
+            view = self.ground_view(frame.shape[:2], camera_pose)
         top = view.band_top() if view is not None and crop and self.any_input_size else 0
         band = frame[top:]
         blob, box = self.prepare(band, self.band_input_hw(frame.shape[:2], band.shape[0]) if top else None)

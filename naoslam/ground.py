@@ -83,13 +83,21 @@ class GroundView:
         in_camera = (np.asarray(point, float) - np.array([0.0, 0.0, self.pose.z])) @ self._rotation
         return None if in_camera[2] <= 1e-9 else self.camera.project(in_camera)
 
-    def horizon_row(self, u: float) -> float:
-        """Image row of the horizon at column ``u`` (where rays run level with the floor)."""
+    @cached_property
+    def _horizon(self) -> tuple[float, float, float] | None:
+        """The horizon as a line through pixel (u0, v0) with slope dv/du; None when it is not in front of the camera."""
         far = self.project(np.array([1e6, 0.0, self.pose.z]))
         side = self.project(np.array([1e6, 1e5, self.pose.z]))
         if far is None or side is None or abs(side[0] - far[0]) < 1e-9:
+            return None
+        return float(far[0]), float(far[1]), float((side[1] - far[1]) / (side[0] - far[0]))
+
+    def horizon_row(self, u: float) -> float:
+        """Image row of the horizon at column ``u`` (where rays run level with the floor)."""
+        if self._horizon is None:
             return -math.inf
-        return float(far[1] + (u - far[0]) * (side[1] - far[1]) / (side[0] - far[0]))
+        u0, v0, slope = self._horizon
+        return v0 + (u - u0) * slope
 
     def band_top(self) -> int:
         """The first frame row where a pole can appear: ``CROP_MARGIN_PX`` above the horizon's highest point

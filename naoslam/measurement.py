@@ -15,7 +15,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from naoslam.camera import CameraPose, PinholeCamera, finite_numbers
+from naoslam.camera import NAO_HFOV_DEG, CameraPose, PinholeCamera, finite_numbers
 from naoslam.ground import GroundView
 from naoslam.landmarks import PoleGeometry
 
@@ -51,6 +51,8 @@ class Measurement:
     range_std: float
     bearing_std: float
     source: str = ""
+    #: The detection it was measured from (a ``Detection`` or the colour filter's ``ColourDetection``), if any.
+    detection: object | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         values = (self.range_m, self.bearing_rad, self.range_std, self.bearing_std)
@@ -70,7 +72,7 @@ class RangeCalibration:
     upright_ratio: float = 0.21
     ratio_tolerance: float = 0.25
     bearing_std_rad: float = math.radians(1.0)
-    hfov_deg: float = 56.3
+    hfov_deg: float = NAO_HFOV_DEG
     colour_law: PowerLaw | None = None
     extra: dict = field(default_factory=dict)
     #: The laws were fitted on on-axis sizes (:func:`on_axis_size`); calibrations from before 2026-11-24 were not.
@@ -212,11 +214,10 @@ class MeasurementModel:
         self.pitch_std_rad = pitch_std_rad
 
     def measure(self, detections, image_width: int, camera_pose: CameraPose | None = None,
-                image_height: int | None = None) -> list[Measurement]:
+                image_height: int | None = None, view: GroundView | None = None) -> list[Measurement]:
         """Measurements for detections (``naoslam.detector.Detection``) above the confidence threshold; a
-        ``camera_pose`` needs the ``image_height`` too."""
-        view = None
-        if camera_pose is not None:
+        ``camera_pose`` needs the ``image_height`` too, or pass the frame's ground ``view`` already built."""
+        if view is None and camera_pose is not None:
             if image_height is None:
                 raise ValueError("a camera pose needs the image height to place the principal point")
             view = GroundView(PinholeCamera(image_width, image_height, self.calibration.hfov_deg), camera_pose)
@@ -239,6 +240,6 @@ class MeasurementModel:
                 if fused is not None:
                     (range_m, range_std), used, bearing = fused, f"{used}+foot", foot.bearing_rad
             out.append(Measurement(range_m, bearing, d.name, d.confidence, range_std,
-                                   self.calibration.bearing_std_rad, used))
+                                   self.calibration.bearing_std_rad, used, d))
         return out
 

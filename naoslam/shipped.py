@@ -1,7 +1,11 @@
-"""The pole model that ships with naoslam: a pole-pretrained YOLOv8n-seg, exported to ONNX (FP32 and INT8).
+"""The pole models that ship with naoslam, each an ONNX file whose metadata holds its range calibration and the
+confidence threshold it runs at (``operating_conf``).
 
-Its metadata holds the range calibration and the operating confidence threshold (``operating_conf``) chosen on
-synthetic validation frames; ``LandmarkDetector()`` with no model uses it at that threshold.
+- the accurate model (``shipped``, and its INT8 copy ``shipped-int8``): YOLOv8n-seg at 640 px, for offline analysis,
+  pre-labelling and machines with a vector unit;
+- the robot model (``shipped-robot``): a network a twentieth of its size at 320 px, for the Nao's Atom at camera rate.
+
+``LandmarkDetector()`` runs the accurate one, ``LandmarkDetector(profile="robot")`` the robot one.
 """
 from __future__ import annotations
 
@@ -9,35 +13,54 @@ from pathlib import Path
 
 #: Folder of the shipped ONNX models (package data).
 MODELS_DIR = Path(__file__).resolve().parent / "models"
-#: Stem of the shipped model's files.
+#: Stem of the accurate model's files.
 SHIPPED_NAME = "poles-yolov8n-seg"
+#: Stem of the robot model's file.
+ROBOT_NAME = "poles-robot-seg"
 #: Metadata key of the confidence threshold a model is meant to run at.
 OPERATING_CONF_KEY = "operating_conf"
+#: Names that stand for the shipped models wherever a model path is asked for, and their files.
+SHIPPED_FILES = {"shipped": f"{SHIPPED_NAME}.onnx", "shipped-int8": f"{SHIPPED_NAME}-int8.onnx",
+                 "shipped-robot": f"{ROBOT_NAME}.onnx"}
+#: ``LandmarkDetector`` profiles and the shipped model each one runs.
+PROFILES = {"accurate": "shipped", "robot": "shipped-robot"}
 
 
 def shipped_path(int8: bool = False) -> Path:
-    """Where the shipped ONNX model (FP32, or the INT8 copy) lives in the package."""
-    return MODELS_DIR / (f"{SHIPPED_NAME}-int8.onnx" if int8 else f"{SHIPPED_NAME}.onnx")
+    """Where the accurate model (FP32, or the INT8 copy) lives in the package."""
+    return MODELS_DIR / SHIPPED_FILES["shipped-int8" if int8 else "shipped"]
 
 
-#: Names that stand for the shipped models wherever a model path is asked for.
-SHIPPED_NAMES = {"shipped": False, "shipped-int8": True}
+def robot_path() -> Path:
+    """Where the robot model lives in the package."""
+    return MODELS_DIR / SHIPPED_FILES["shipped-robot"]
 
 
 def model_argument(path: Path) -> str:
-    """How a command names the model at ``path``: ``shipped`` / ``shipped-int8`` for the shipped ones."""
-    named = {shipped_path(int8): name for name, int8 in SHIPPED_NAMES.items()}
+    """How a command names the model at ``path``: ``shipped``, ``shipped-int8`` or ``shipped-robot`` for the
+    shipped ones."""
+    named = {(MODELS_DIR / file).resolve(): name for name, file in SHIPPED_FILES.items()}
     return named.get(Path(path).resolve(), str(path))
 
 
 def resolve_model(name: str | Path) -> Path:
-    """``shipped`` / ``shipped-int8`` as the shipped model's path; any other name as a path."""
-    return shipped_model(SHIPPED_NAMES[str(name)]) if str(name) in SHIPPED_NAMES else Path(name)
+    """A shipped model's name as its path; any other name as a path."""
+    return _installed(MODELS_DIR / SHIPPED_FILES[str(name)]) if str(name) in SHIPPED_FILES else Path(name)
+
+
+def profile_model(profile: str) -> Path:
+    """The shipped model a ``LandmarkDetector`` profile runs (``accurate`` or ``robot``)."""
+    if profile not in PROFILES:
+        raise ValueError(f"profile {profile!r} is not one of {', '.join(PROFILES)}")
+    return resolve_model(PROFILES[profile])
 
 
 def shipped_model(int8: bool = False) -> Path:
-    """Path of the shipped ONNX model (FP32, or the INT8 copy); an error that says how to get it if it is missing."""
-    path = shipped_path(int8)
+    """Path of the accurate model (FP32, or the INT8 copy); an error that says how to get it if it is missing."""
+    return _installed(shipped_path(int8))
+
+
+def _installed(path: Path) -> Path:
     if not path.is_file():
         raise FileNotFoundError(f"{path}: the shipped pole model is missing from this installation - reinstall "
                                 "nao-poles, or pass your own model exported with `poles export`")

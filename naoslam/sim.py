@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from naoslam.camera import NAO_HFOV_DEG
 from naoslam.field import GUTMANN_LANDMARKS
 from naoslam.landmarks import CLASSES
 from naoslam.measurement import Measurement
@@ -43,7 +44,7 @@ class SimConfig:
     #: Frames per second the front end gets through (every frame_hz / front_end_hz-th camera frame; None: all), as
     #: a slower CPU would. The walk, its odometry and the frames kept are the same as at the full rate.
     front_end_hz: float | None = None
-    hfov_deg: float = 56.3
+    hfov_deg: float = NAO_HFOV_DEG
     max_range_m: float = 6.0
     range_rel_std: float = 0.05
     bearing_std_deg: float = 1.5

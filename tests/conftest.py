@@ -5,12 +5,25 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
+import cv2
+import numpy as np
 import pytest
 
 from detector.synth.generate import SynthJob, generate_dataset
+from detector.synth.render import render_scene
+from detector.synth.scene import calibration_scene
+from naoslam.camera import PinholeCamera
 
 REPOSITORY = Path(__file__).resolve().parents[1]
 SHARED = REPOSITORY.parent / "shared"
+
+
+def rendered_pole(code: str, range_m: float, angle_deg: float, seed: int):
+    """One pole rendered by a 640x480 Nao camera: the BGR uint8 frame and the render (with the pole's mask)."""
+    scene = calibration_scene(np.random.default_rng(seed), PinholeCamera(640, 480), code, range_m=range_m,
+                              angle_deg=angle_deg)
+    frame = render_scene(scene)
+    return cv2.cvtColor((frame.image * 255 + 0.5).astype(np.uint8), cv2.COLOR_RGB2BGR), frame
 
 
 @pytest.fixture(scope="session")

@@ -241,7 +241,7 @@ def test_a_model_without_calibration_is_refused_when_the_measurement_model_is_bu
 def test_a_broken_calibration_in_a_model_is_refused_naming_the_model(tiny_onnx, tmp_path):
     """A range law with a <= 0 in a model's metadata gave nonsense ranges; with the law's own check it would name
     no file."""
-    from export.onnx_export import add_metadata
+    from detector.model_files import add_metadata
 
     model = tmp_path / "model.onnx"
     shutil.copy(tiny_onnx, model)

@@ -10,8 +10,10 @@ import numpy as np
 import onnx
 import pytest
 
-from export.onnx_export import export_onnx, read_info, write_metadata
-from export.verify import compare, frontend_predict, ultralytics_predict
+from detector.model_files import read_info, write_metadata
+from export.onnx_export import export_onnx
+from detector.model_files import ultralytics_predict
+from export.verify import compare, frontend_predict
 from naoslam.camera import CameraPose
 from naoslam.colour_filter import ColourFilter
 from naoslam.detector import Detection, LandmarkDetector, Letterbox, RotatedBox, _mask_in_box

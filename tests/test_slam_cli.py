@@ -138,7 +138,7 @@ def test_the_colour_filter_is_refused_a_calibration_without_a_colour_law_before_
     without_colour.write_text(json.dumps({"calibration": box_only.to_dict()}))
     assert main(["slam", "--sim", "square", "--frontend", "colour-filter", "--calibration", str(without_colour),
                  "--out", str(tmp_path / "slam")]) == 2
-    assert "--calibration has none: leave --calibration out" in capsys.readouterr().err
+    assert "the calibration has none: leave the calibration out" in capsys.readouterr().err
     assert not (tmp_path / "slam").exists()
 
 

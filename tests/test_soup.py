@@ -9,7 +9,7 @@ import torch
 
 from detector.cli import main
 from detector.training.starting_point import SHIPPED_WEIGHTS
-from detector.training.train import read_checkpoint
+from detector.model_files import read_checkpoint
 from naoslam.landmarks import CLASSES
 
 

@@ -14,7 +14,8 @@ import pytest
 from detector.cli import main
 from detector.training.train import TrainSettings, summarise_run, train_model
 from detector.training.curves import read_results
-from export.onnx_export import export_onnx, read_info
+from detector.model_files import read_info
+from export.onnx_export import export_onnx
 from export.quantize import decode_head_nodes
 from export.run import ExportJob, ExportMismatch, run_export
 from naoslam.detector import LandmarkDetector

@@ -8,6 +8,7 @@ from pathlib import Path
 from augment.config import OPERATIONS, AugmentConfig
 from detector.cli.arguments import add_dataset_argument, existing, finite_number, image_size, whole_number
 from detector.synth.scene import SceneConfig
+from naoslam.camera import NAO_HFOV_DEG
 from naoslam.sim import PATHS
 
 
@@ -27,8 +28,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     synth.add_argument("--images", type=int, help="number of images (default 500; with --walk, all its frames)")
     synth.add_argument("--seed", type=whole_number(0), default=0, help="random seed: same seed, same dataset")
     synth.add_argument("--size", type=image_size, default=(640, 480), help="image size WIDTHxHEIGHT (default 640x480)")
-    synth.add_argument("--hfov", type=finite_number, default=56.3,
-                       help="horizontal field of view in degrees (default 56.3)")
+    synth.add_argument("--hfov", type=finite_number, default=NAO_HFOV_DEG,
+                       help=f"horizontal field of view in degrees (default {NAO_HFOV_DEG}, the Nao's top camera)")
     synth.add_argument("--calibration-shots", action="store_true",
                        help="one pole per image at known distances 0.5-5 m and angles 0, +-10, +-20 deg")
     synth.add_argument("--walk", choices=PATHS,

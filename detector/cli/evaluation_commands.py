@@ -17,7 +17,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     evaluate = sub.add_parser("evaluate", help="precision, recall and mask IoU per image on held-out frames")
     evaluate.add_argument("--model", action="append",
                           help="a .pt checkpoint (or its `poles train` run folder), an .onnx model, `shipped`, "
-                               "`shipped-int8` or `colour-filter`; "
+                               "`shipped-int8`, `shipped-robot` or `colour-filter`; "
                                "repeat to compare several (default: the shipped model)")
     add_dataset_argument(evaluate, "held-out frames with labels (dataset folder or COCO export)")
     evaluate.add_argument("--split", default="test", help="split to evaluate (default test)")
@@ -37,7 +37,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                         help="folder of unlabelled frames (subfolders too): write pre-annotations to --out")
     source.add_argument("--video", type=Path, help="video file or folder of frames in order: write an overlay MP4")
     predict.add_argument("--out", type=Path, required=True, help="dataset folder (--images) or video.mp4 (--video)")
-    predict.add_argument("--model", type=Path, help="ONNX model (default: the shipped model)")
+    predict.add_argument("--model", type=Path, help="ONNX model, `shipped-int8` or `shipped-robot` (default: the "
+                         "shipped accurate model)")
     predict.add_argument("--conf", type=confidence, help="confidence threshold (default: the model's own)")
     predict.add_argument("--format", choices=("yolov8", "coco"), default="yolov8", help="pre-annotation layout")
     add_input_width_argument(predict, "with --video, to see what a robot running it smaller sees: ")

@@ -24,8 +24,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     source.add_argument("--utias", type=Path, help="UTIAS MRCLAM folder (Odometry.dat, Measurement.dat, ...)")
     source.add_argument("--frames", type=Path, help="recorded frames named <time>.jpg (with --odometry)")
     slam.add_argument("--odometry", type=Path, help="odometry CSV t,x,y,theta for --frames")
-    slam.add_argument("--frontend", help="model.onnx, `shipped` or colour-filter: the image-level simulation / "
-                                         "recording (default for --frames: the shipped model)")
+    slam.add_argument("--frontend", help="model.onnx, `shipped`, `shipped-robot` or colour-filter: the image-level "
+                                         "simulation / recording (default for --frames: the shipped model)")
     slam.add_argument("--calibration", type=Path, help="calibration.json (default: the one in the model; for "
                                                    "colour-filter, the shipped model's colour law)")
     add_input_width_argument(slam)
@@ -109,7 +109,7 @@ def _slam(args: argparse.Namespace) -> int:
     from detector.slam.outputs import write_outputs
     from detector.slam.reference import smooth
     from detector.slam.sequences import FrontEnd
-    from naoslam.atomic import write_json
+    from detector.atomic import write_json
     from naoslam.runner import run_slam
 
     calibration = load_calibration(args.calibration) if args.calibration else None

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from detector.cli.arguments import (add_dataset_argument, add_input_width_argument, confidence, finite_number,
                                     thread_choice, whole_number)
+from detector.training import defaults
 from detector.training.openmp_wait import choose_wait_policy
 from detector.training.starting_point import run_checkpoint
 
@@ -16,28 +17,33 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     train = sub.add_parser("train", help="train a YOLOv8 segmentation model on the CPU (offline, every core)")
     add_dataset_argument(train, "dataset folder with data.yaml")
     train.add_argument("--out", type=Path, required=True, help="run folder (weights/best.pt, results.csv, curves)")
-    train.add_argument("--model", help="yolov8n-seg (default), yolov8s-seg or yolov8m-seg")
+    train.add_argument("--model", help=f"{defaults.MODEL} (default), yolov8s-seg, yolov8m-seg, or robot-p4-seg / "
+                       "robot-p5-seg (small enough for the Nao's CPU; train them at --imgsz 320)")
     train.add_argument("--weights", help="checkpoint (or `poles train` run folder) to fine-tune from (default: the "
                                          "shipped pole model for yolov8n-seg), or `scratch` to train from the "
                                          "architecture alone")
-    train.add_argument("--epochs", type=whole_number(1), default=100,
-                       help="epochs to train (default 100; --time overrides)")
+    train.add_argument("--epochs", type=whole_number(1), default=defaults.EPOCHS,
+                       help=f"epochs to train (default {defaults.EPOCHS}; --time overrides)")
     train.add_argument("--time", type=finite_number,
                        help="train for this many hours instead (Ultralytics fits the epochs)")
-    train.add_argument("--imgsz", type=whole_number(32), default=640, help="training image size (default 640)")
-    train.add_argument("--batch", type=whole_number(1), default=8, help="images per batch (default 8)")
-    train.add_argument("--patience", type=whole_number(0), default=50,
-                       help="stop after this many epochs without improvement (default 50; 0: never stop early)")
-    train.add_argument("--seed", type=whole_number(0), default=0, help="random seed (default 0)")
+    train.add_argument("--imgsz", type=whole_number(32), default=defaults.IMGSZ,
+                       help=f"training image size (default {defaults.IMGSZ})")
+    train.add_argument("--batch", type=whole_number(1), default=defaults.BATCH,
+                       help=f"images per batch (default {defaults.BATCH})")
+    train.add_argument("--patience", type=whole_number(0), default=defaults.PATIENCE,
+                       help=f"stop after this many epochs without improvement (default {defaults.PATIENCE}; 0: never "
+                            "stop early)")
+    train.add_argument("--seed", type=whole_number(0), default=defaults.SEED,
+                       help=f"random seed (default {defaults.SEED})")
     train.add_argument("--threads", type=thread_choice,
                        help="torch threads: `shared` (default): every core, waiting threads sleep, so other programs "
                             "on the machine do not slow training down many times over; `all`: every core, waiting "
                             "threads spin (about 10 %% faster on an idle machine); a number; `auto` to re-time the "
                             "count while training")
-    train.add_argument("--workers", type=whole_number(0), default=0,
-                       help="data-loader processes (default 0: best on 2 cores)")
+    train.add_argument("--workers", type=whole_number(0), default=defaults.WORKERS,
+                       help=f"data-loader processes (default {defaults.WORKERS}: best on 2 cores)")
     train.add_argument("--no-cache", action="store_true", help="do not cache decoded images in RAM")
-    train.add_argument("--device", default="cpu",
+    train.add_argument("--device", default=defaults.DEVICE,
                        help="cpu (default), a GPU index such as 0, several such as 0,1 (Ultralytics' DDP), or mps")
     train.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="hyperparameters",
                        help="any other Ultralytics training argument, e.g. --set lr0=0.0002 --set mosaic=0; repeat "
@@ -102,7 +108,7 @@ def _train(args: argparse.Namespace) -> int:
         raise ValueError("--set with --resume: a resumed run keeps the arguments it started with - drop --set")
     model, weights = (args.model or "", None) if args.resume else starting_point(args.model, args.weights)
     threads = args.threads if isinstance(args.threads, int) else None
-    settings = TrainSettings(model=model or "yolov8n-seg", epochs=args.epochs, imgsz=args.imgsz, batch=args.batch,
+    settings = TrainSettings(model=model or defaults.MODEL, epochs=args.epochs, imgsz=args.imgsz, batch=args.batch,
                              patience=args.patience, seed=args.seed, threads=threads,
                              adaptive_threads=args.threads == "auto", workers=args.workers,
                              cache=not args.no_cache, time_hours=args.time, device=args.device,

@@ -17,7 +17,7 @@ from detector.datasets.jpeg import truncated_jpeg
 from detector.datasets.labels import BOX_ONLY
 from detector.datasets.model import SPLITS, Dataset, DatasetError, Problem, Sample
 from detector.datasets.orientation import UPRIGHT, encoded_orientation
-from naoslam.atomic import write_text
+from detector.atomic import write_text
 from naoslam.landmarks import CLASSES
 
 

@@ -7,8 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from detector.datasets.io import IMAGE_SUFFIXES
-from detector.datasets.model import SPLITS, Dataset, Instance, Problem, Sample
+from detector.datasets.model import IMAGE_SUFFIXES, SPLITS, Dataset, Instance, Problem, Sample
 from detector.datasets.names import class_codes, unknown_class_problems
 from detector.datasets.orientation import stored_and_upright_size
 from detector.datasets.polygons import merge_polygons, polygon_area

@@ -17,12 +17,11 @@ import yaml
 
 from detector.datasets.jpeg import truncated_jpeg
 from detector.datasets.labels import format_label_line, parse_label_file
-from detector.datasets.model import SPLITS, Dataset, DatasetError, Instance, Problem, Sample
+from detector.datasets.model import IMAGE_SUFFIXES, SPLITS, Dataset, DatasetError, Instance, Problem, Sample
 from detector.datasets.names import class_codes, unknown_class_problems
-from naoslam.atomic import atomic_folder
+from detector.atomic import atomic_folder
 from naoslam.landmarks import CLASSES
 
-IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".webp", ".tif", ".tiff"}
 #: data.yaml key -> split folder name.
 YAML_SPLIT_KEYS = {"train": "train", "val": "valid", "test": "test"}
 

@@ -9,6 +9,8 @@ import numpy as np
 
 #: Split folder names in the Roboflow layout, in the order they are reported.
 SPLITS: tuple[str, ...] = ("train", "valid", "test")
+#: File suffixes read as images.
+IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".webp", ".tif", ".tiff"}
 
 Severity = Literal["error", "warning", "note"]
 

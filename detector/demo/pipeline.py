@@ -180,7 +180,7 @@ def _starting_conf(model: str) -> float | None:
     metadata), else none."""
     if _start_weights(model) != SHIPPED_WEIGHTS:
         return None
-    from export.onnx_export import read_info
+    from detector.model_files import read_info
     from naoslam.shipped import OPERATING_CONF_KEY, shipped_model
 
     return read_info(shipped_model()).extra.get(OPERATING_CONF_KEY)
@@ -244,7 +244,7 @@ def _evaluate(folder: Path, models: list[Path], data: Path, calibration_json: Pa
     from detector.evaluation.predictors import make_predictor
     from detector.evaluation.run import evaluate
     from export.onnx_export import int8_path
-    from naoslam.atomic import write_json
+    from detector.atomic import write_json
 
     calibration = load_calibration(calibration_json)
     conf, conf_source = budget.conf, "the thesis's"
@@ -286,7 +286,7 @@ def _slam(folder: Path, model: Path, calibration_json: Path, budget: Budget, con
     from detector.slam.comparison import BACKENDS, compare_backends
     from detector.slam.outputs import write_outputs
     from detector.slam.sequences import FrontEnd, image_sequences, sim_sequence
-    from naoslam.atomic import write_json
+    from detector.atomic import write_json
     from naoslam.ekf_slam import SlamConfig
     from naoslam.runner import run_slam
     from naoslam.sim import SimConfig

@@ -8,7 +8,7 @@ from pathlib import Path
 import cv2
 
 from detector.demo.stages import StageRecord
-from naoslam.atomic import write_text
+from detector.atomic import write_text
 
 STYLE = """
 body { font-family: sans-serif; max-width: 1150px; margin: 1.5em auto; padding: 0 1em; color: #222; }

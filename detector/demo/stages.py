@@ -13,7 +13,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from naoslam.atomic import write_json
+from detector.atomic import write_json
 
 
 class StageFailed(RuntimeError):

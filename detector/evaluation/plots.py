@@ -11,7 +11,7 @@ from matplotlib.ticker import MaxNLocator
 from detector.evaluation.counting import ImageEvaluation, best_threshold
 from detector.figures import plt, save_figure
 from detector.preview import draw_label
-from naoslam.atomic import write_bytes
+from detector.atomic import write_bytes
 
 COUNT_COLOURS = {"tp": "#2ca02c", "fp": "#d62728", "fn": "#ff7f0e", "tn": "#1f77b4"}
 #: BGR colours of the overlays: matched detections, false positives, missed labels.

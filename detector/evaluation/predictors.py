@@ -72,7 +72,7 @@ class TorchPredictor(Predictor):
         self.name = Path(path).name
 
     def __call__(self, frame: np.ndarray) -> Prediction:
-        from export.verify import ultralytics_frame
+        from detector.model_files import ultralytics_frame
 
         found = ultralytics_frame(self.model, frame, self.imgsz, SWEEP_CONF)
         masks = list(found.masks)
@@ -100,7 +100,7 @@ class ColourFilterPredictor(Predictor):
 
 
 def make_predictor(model: str, imgsz: int | None = None, calibration: RangeCalibration | None = None) -> Predictor:
-    """``colour-filter``, ``shipped`` / ``shipped-int8`` (the models in naoslam), a ``.pt`` checkpoint (or the run
+    """``colour-filter``, ``shipped`` / ``shipped-int8`` / ``shipped-robot`` (the models in naoslam), a ``.pt`` checkpoint (or the run
     folder that holds it) or an ``.onnx``.
 
     ``imgsz``: the network's input width (default: 640 for a checkpoint, an ONNX model's own).

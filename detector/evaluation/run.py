@@ -18,7 +18,7 @@ from detector.evaluation.counting import (ImageEvaluation, best_threshold, confi
 from detector.evaluation.paired import f1_difference
 from detector.evaluation.plots import plot_confusion, plot_per_image, plot_recall_by_width, plot_sweep, write_overlays
 from detector.evaluation.predictors import ColourFilterPredictor, Predictor
-from naoslam.atomic import write_json
+from detector.atomic import write_json
 from naoslam.camera import NAO_HFOV_DEG
 from naoslam.landmarks import CLASSES
 from naoslam.measurement import bearing_of_column

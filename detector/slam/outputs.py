@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from naoslam.atomic import atomic_path, write_json
+from detector.atomic import atomic_path, write_json
 from naoslam.runner import Sequence, SlamResult
 
 

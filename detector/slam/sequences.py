@@ -16,7 +16,7 @@ from naoslam.camera import CameraPose
 from naoslam.ground import ground_plane_problem
 from naoslam.landmarks import CLASSES
 from naoslam.logs import load_utias
-from naoslam.measurement import THESIS_CONF, Measurement, MeasurementModel, RangeCalibration
+from naoslam.measurement import RangeCalibration
 from naoslam.motion import OdometryModel
 from naoslam.runner import Event, Sequence, merge_frames, walk_sequence
 from naoslam.sim import SimConfig, simulate
@@ -36,46 +36,11 @@ class FrontEnd:
     input_width: int | None = None
 
     def measurer(self):
-        """A function (frame, camera_pose=None) -> measurements; with a pose, the ground-plane gate and the
-        foot-row range are used (model front ends only)."""
-        if self.model == "colour-filter":
-            return self._colour_filter()
-        from naoslam.detector import LandmarkDetector
+        """naoslam's ``FrontEnd`` for this model: a function (frame, camera_pose=None) -> measurements; with a pose,
+        the ground-plane gate and the foot-row range are used (model front ends only)."""
+        from naoslam.front_end import FrontEnd as RuntimeFrontEnd
 
-        detector = LandmarkDetector(self.model, input_width=self.input_width)
-        min_confidence = self.min_confidence if self.min_confidence is not None else detector.stored_conf or THESIS_CONF
-        detector.conf = min(detector.conf, min_confidence)
-        calibration = detector.check_calibration(self.calibration) if self.calibration else detector.calibration
-        if calibration is None:
-            raise ValueError(f"{self.model}: no calibration in the model - run `poles calibrate --embed` "
-                             "or pass --calibration")
-        model = MeasurementModel(calibration, min_confidence)
-
-        def measure(frame: np.ndarray, camera_pose: CameraPose | None = None) -> list[Measurement]:
-            return model.measure(detector(frame, camera_pose), frame.shape[1], camera_pose, frame.shape[0])
-
-        return measure
-
-    def _colour_filter(self):
-        from naoslam.colour_filter import ColourFilter
-        from naoslam.detector import shipped_calibration
-        from naoslam.measurement import bearing_of_column
-
-        calibration = self.calibration if self.calibration is not None else shipped_calibration()
-        if calibration is None or calibration.colour_law is None:
-            raise ValueError("the colour filter needs a colour law and --calibration has none: leave --calibration "
-                             "out to use the shipped one, or fit one with `poles calibrate` on poles of known range")
-        colour_filter = ColourFilter()
-
-        def measure(frame: np.ndarray, camera_pose: CameraPose | None = None) -> list[Measurement]:
-            width, out = frame.shape[1], []
-            for d in colour_filter(frame):
-                range_m, range_std = calibration.colour_range(d.band_distance_px, width, column=d.centre_column)
-                out.append(Measurement(range_m, bearing_of_column(d.centre_column, width, calibration.hfov_deg),
-                                       d.name, 1.0, range_std, calibration.bearing_std_rad, "colour filter"))
-            return out
-
-        return measure
+        return RuntimeFrontEnd(self.model, self.calibration, self.min_confidence, self.input_width)
 
 
 def sim_sequence(config: SimConfig, front_end: FrontEnd | None = None, progress: bool = True,

@@ -21,7 +21,7 @@ from detector.synth.objects import repainted
 from detector.synth.render import MIN_BAND_PIXELS, MIN_BAND_SHARE, Frame, PoleTruth, render_scene
 from detector.synth.scene import BackdropShot, Scene, SceneConfig, calibration_scene, sample_scene
 from detector.synth.walk import simulated_walk, walk_frame_steps, walk_scene
-from naoslam.camera import PinholeCamera
+from naoslam.camera import NAO_HFOV_DEG, PinholeCamera
 from naoslam.landmarks import CLASSES
 from naoslam.sim import PATHS
 
@@ -46,7 +46,7 @@ class SynthJob:
     seed: int
     width: int = 640
     height: int = 480
-    hfov_deg: float = 56.3
+    hfov_deg: float = NAO_HFOV_DEG
     calibration_shots: bool = False
     config: SceneConfig = SceneConfig()
     #: Real frames without poles to draw the objects over (``scan_backdrops``); empty: the modelled room.

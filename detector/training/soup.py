@@ -15,8 +15,8 @@ from pathlib import Path
 import torch
 
 from detector.datasets.io import check_output_file
-from detector.training.train import read_checkpoint
-from naoslam.atomic import atomic_path
+from detector.model_files import read_checkpoint
+from detector.atomic import atomic_path
 
 
 def _network(checkpoint: dict) -> torch.nn.Module:

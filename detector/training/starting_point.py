@@ -8,6 +8,8 @@ from pathlib import Path
 SHIPPED_WEIGHTS = Path(__file__).resolve().parents[1] / "weights" / "poles-yolov8n-seg.pt"
 #: Its architecture.
 SHIPPED_ARCHITECTURE = "yolov8n-seg"
+#: The robot model's checkpoint (the source of naoslam's ``shipped-robot``); train it on with ``--weights``.
+ROBOT_WEIGHTS = SHIPPED_WEIGHTS.with_name("poles-robot-seg.pt")
 #: ``--weights`` value that trains from the YAML instead.
 SCRATCH = "scratch"
 

@@ -22,13 +22,25 @@ from ultralytics.models.yolo.segment import SegmentationTrainer
 from ultralytics.utils import DEFAULT_CFG, DEFAULT_CFG_DICT, torch_utils
 
 from detector.console import bars_as_log_lines
+from detector.training import defaults
 from detector.training.cpu_threads import ThreadTuner
 from detector.datasets.intake import open_dataset, training_view
+from detector.model_files import read_checkpoint
 from detector.training.curves import best_epoch, plot_training_curves
 from detector.training.devices import check_device
 
-#: Segmentation models that can be built from their YAML without a download.
-MODELS = ("yolov8n-seg", "yolov8s-seg", "yolov8m-seg")
+#: Ultralytics' segmentation models that can be built from their YAML without a download.
+ULTRALYTICS_MODELS = ("yolov8n-seg", "yolov8s-seg", "yolov8m-seg")
+#: This package's own architectures, small enough for the Nao's CPU (``architectures/<name>.yaml``).
+ROBOT_MODELS = ("robot-p4-seg", "robot-p5-seg")
+#: Every architecture ``poles train --model`` builds.
+MODELS = ULTRALYTICS_MODELS + ROBOT_MODELS
+ARCHITECTURES_DIR = Path(__file__).resolve().parent / "architectures"
+
+
+def architecture_yaml(model: str) -> str:
+    """The YAML that builds ``model``: Ultralytics' own by name, or this package's file for a robot architecture."""
+    return str(ARCHITECTURES_DIR / f"{model}.yaml") if model in ROBOT_MODELS else f"{model}.yaml"
 #: Ultralytics training arguments that ``poles train`` sets itself (its own flag, or fixed for an offline CPU run).
 MANAGED_ARGUMENTS = {"data": "--data", "project": "--out", "name": "--out", "exist_ok": "--out", "model": "--model",
                      "epochs": "--epochs", "time": "--time", "imgsz": "--imgsz", "batch": "--batch",
@@ -39,20 +51,20 @@ MANAGED_ARGUMENTS = {"data": "--data", "project": "--out", "name": "--out", "exi
 
 @dataclass(frozen=True)
 class TrainSettings:
-    """What ``poles train`` passes to Ultralytics. Defaults are the thesis's (YOLOv8s, 640 px)."""
+    """What ``poles train`` passes to Ultralytics; the defaults are ``detector.training.defaults``."""
 
-    model: str = "yolov8s-seg"
-    epochs: int = 100
-    imgsz: int = 640
-    batch: int = 8
-    patience: int = 50
-    seed: int = 0
+    model: str = defaults.MODEL
+    epochs: int = defaults.EPOCHS
+    imgsz: int = defaults.IMGSZ
+    batch: int = defaults.BATCH
+    patience: int = defaults.PATIENCE
+    seed: int = defaults.SEED
     threads: int | None = None
-    workers: int = 0
+    workers: int = defaults.WORKERS
     cache: bool = True
     time_hours: float | None = None
     #: Ultralytics' device string: "cpu" (default), "0", "0,1" (DDP across GPUs) or "mps".
-    device: str = "cpu"
+    device: str = defaults.DEVICE
     #: Let ``ThreadTuner`` pick the thread count by timing batches (``--threads auto``); off by default (see README).
     adaptive_threads: bool = False
     #: Further Ultralytics training arguments (``--set lr0=0.0002``), already typed; see ``parse_hyperparameters``.
@@ -145,7 +157,7 @@ def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | 
         _clear_unfinished_run(out)
         with _removed_unless_resumable(out):
             data_yaml = training_view(dataset, out / "dataset")
-            model = YOLO(str(weights) if weights else f"{settings.model}.yaml", task="segment")
+            model = YOLO(str(weights) if weights else architecture_yaml(settings.model), task="segment")
             options = asdict(settings)
             for name in ("model", "threads", "adaptive_threads"):
                 options.pop(name)
@@ -202,20 +214,6 @@ def _finished(last: Path) -> bool:
         return read_checkpoint(last).get("epoch", -1) < 0
     except Exception:  # an unreadable checkpoint belongs to an unfinished run
         return False
-
-
-def read_checkpoint(path: Path) -> dict:
-    """A local Ultralytics checkpoint as a dict (plain torch.load on the CPU: never a download)."""
-    if not Path(path).is_file():
-        raise FileNotFoundError(f"{path}: no such checkpoint - pass a best.pt or last.pt written by `poles train`")
-    try:
-        checkpoint = torch_utils.torch.load(str(path), map_location="cpu", weights_only=False)
-    except Exception as exc:  # torch raises pickle, zip and runtime errors for files that are not checkpoints
-        raise ValueError(f"{path}: not a readable PyTorch checkpoint ({type(exc).__name__}) - "
-                         "pass a best.pt or last.pt written by `poles train`") from None
-    if not isinstance(checkpoint, dict) or "model" not in checkpoint and "ema" not in checkpoint:
-        raise ValueError(f"{path}: not an Ultralytics checkpoint (no model inside) - pass a .pt written by `poles train`")
-    return checkpoint
 
 
 def _resumable_data(last: Path) -> str:

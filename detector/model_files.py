@@ -1,0 +1,88 @@
+"""Reading the files a model lives in, for every stage: a checkpoint (``read_checkpoint``), an ONNX model's
+naoslam metadata (``read_info``, ``write_metadata``, ``add_metadata``) and a checkpoint's own answers through
+Ultralytics (``ultralytics_predict``), which export verification and evaluation both compare against."""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import onnx
+
+from detector.atomic import atomic_path
+from naoslam.model_info import METADATA_KEY, ModelInfo
+
+
+def read_checkpoint(path: Path) -> dict:
+    """A local Ultralytics checkpoint as a dict (plain torch.load on the CPU: never a download)."""
+    import torch
+
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"{path}: no such checkpoint - pass a best.pt or last.pt written by `poles train`")
+    try:
+        checkpoint = torch.load(str(path), map_location="cpu", weights_only=False)
+    except Exception as exc:  # torch raises pickle, zip and runtime errors for files that are not checkpoints
+        raise ValueError(f"{path}: not a readable PyTorch checkpoint ({type(exc).__name__}) - "
+                         "pass a best.pt or last.pt written by `poles train`") from None
+    if not isinstance(checkpoint, dict) or "model" not in checkpoint and "ema" not in checkpoint:
+        raise ValueError(f"{path}: not an Ultralytics checkpoint (no model inside) - pass a .pt written by `poles train`")
+    return checkpoint
+
+
+@dataclass(frozen=True)
+class FrameDetections:
+    """Detections of one frame: class ids, scores, xyxy boxes and full-frame boolean masks."""
+
+    class_ids: np.ndarray
+    scores: np.ndarray
+    boxes: np.ndarray
+    masks: np.ndarray
+
+
+def ultralytics_predict(model: Path, frames: list[np.ndarray], input_hw: tuple[int, int],
+                        conf: float) -> list[FrameDetections]:
+    """Ultralytics' own predictions (a .pt on PyTorch, or an .onnx through its AutoBackend) with full-size masks."""
+    from ultralytics import YOLO
+
+    predictor = YOLO(str(model), task="segment")
+    return [ultralytics_frame(predictor, frame, list(input_hw), conf) for frame in frames]
+
+
+def ultralytics_frame(predictor, frame: np.ndarray, imgsz: int | list[int], conf: float) -> FrameDetections:
+    """One frame through a loaded Ultralytics model, masks at the frame's resolution (``retina_masks``)."""
+    result = predictor.predict(frame, imgsz=imgsz, conf=conf, retina_masks=True, device="cpu", verbose=False)[0]
+    masks = (result.masks.data.numpy() > 0.5 if result.masks is not None
+             else np.zeros((0, *frame.shape[:2]), dtype=bool))
+    boxes = result.boxes
+    return FrameDetections(boxes.cls.numpy().astype(int), boxes.conf.numpy(), boxes.xyxy.numpy(), masks)
+
+
+def read_info(path: Path) -> ModelInfo:
+    """The ModelInfo stored in an ONNX file; ValueError naming the file when it is not an ONNX model."""
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"{path}: no such model file - export one with `poles export --weights best.pt`")
+    try:
+        proto = onnx.load(str(path), load_external_data=False)
+    except Exception as exc:  # protobuf raises its own decode errors
+        raise ValueError(f"{path}: not a readable ONNX model ({type(exc).__name__}) - re-export it with `poles export`") from None
+    return ModelInfo.from_metadata({p.key: p.value for p in proto.metadata_props}, path)
+
+
+def add_metadata(model: Path, **entries) -> Path:
+    """Set extra entries (calibration, operating threshold) in ONNX ``model``'s naoslam metadata, in place, atomically.
+
+    The weights are untouched."""
+    info = read_info(model)
+    return write_metadata(model, replace(info, extra={**info.extra, **entries}), model)
+
+
+def write_metadata(source: Path, info: ModelInfo, out: Path) -> Path:
+    """Copy ONNX ``source`` to ``out`` (atomically) with the naoslam entry set to ``info``."""
+    proto = onnx.load(str(source))
+    kept = [p for p in proto.metadata_props if p.key != METADATA_KEY]
+    del proto.metadata_props[:]
+    proto.metadata_props.extend(kept)
+    proto.metadata_props.add(key=METADATA_KEY, value=info.to_json())
+    with atomic_path(out) as tmp:
+        onnx.save(proto, str(tmp))
+    return Path(out)

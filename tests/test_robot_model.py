@@ -1,0 +1,87 @@
+"""The robot model: shipped, reachable by every name a command takes, and runnable at the Atom's instruction set
+(it is run torch-free beside the accurate model in test_shipped_model)."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import onnx
+import pytest
+import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from export.upsampling import NearestUpsample2x, replace_nearest_upsampling
+from naoslam.detector import LandmarkDetector
+from naoslam.front_end import FrontEnd
+from naoslam.measurement import Measurement
+from naoslam.shipped import OPERATING_CONF_KEY, resolve_model, robot_path, shipped_path
+from tests.conftest import rendered_pole
+
+
+def test_the_robot_profile_and_its_name_resolve_to_the_robot_model():
+    assert LandmarkDetector(profile="robot").path == robot_path()
+    assert LandmarkDetector(profile="accurate").path == shipped_path()
+    assert resolve_model("shipped-robot") == robot_path()
+    with pytest.raises(ValueError, match="not one of accurate, robot"):
+        LandmarkDetector(profile="fast")
+    with pytest.raises(ValueError, match="a model or a profile, not both"):
+        LandmarkDetector("shipped", profile="robot")
+
+
+def test_the_robot_model_carries_its_calibration_and_threshold_at_its_own_input_width():
+    detector = LandmarkDetector(profile="robot")
+    assert detector.input_hw == (256, 320)
+    assert 0.0 < detector.info.extra[OPERATING_CONF_KEY] < 1.0 and detector.conf == detector.stored_conf
+    calibration = detector.calibration  # refused if measured at another input width
+    assert calibration.input_width == 320 and calibration.width_law.b < 0 and calibration.height_law.b < 0
+
+
+@pytest.mark.parametrize("model", ["shipped-robot", "shipped-int8"])
+def test_front_end_ranges_a_rendered_pole_within_the_calibrations_error(model):
+    image, _ = rendered_pole("gp", 2.0, 0.0, seed=5)
+    front_end = FrontEnd(model)
+    (measurement,) = front_end(image)
+    assert measurement.signature == "gp"
+    # Three of the calibration's own standard deviations: a wrong law or input width misses by far more.
+    assert abs(measurement.range_m - 2.0) < 3 * measurement.range_std
+    assert abs(measurement.bearing_rad) < np.radians(3)
+    assert measurement.detection.name == "gp"
+
+
+def test_the_colour_filter_and_the_models_give_the_same_measurement_type():
+    image, _ = rendered_pole("pb", 1.5, 0.0, seed=8)
+    found = {name: FrontEnd(name)(image) for name in ("colour-filter", "shipped-robot", "shipped")}
+    assert all(len(measurements) == 1 for measurements in found.values()), found
+    assert {type(measurements[0]) for measurements in found.values()} == {Measurement}
+    assert {measurements[0].signature for measurements in found.values()} == {"pb"}
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(1, 4), st.integers(1, 6), st.integers(1, 9), st.integers(1, 9))
+def test_nearest_upsample_2x_equals_torch_upsample(batch, channels, height, width):
+    x = torch.randn(batch, channels, height, width)
+    assert torch.equal(NearestUpsample2x()(x), torch.nn.Upsample(scale_factor=2, mode="nearest")(x))
+
+
+def test_replacing_upsampling_keeps_ultralytics_routing():
+    layers = torch.nn.Sequential(torch.nn.Identity(), torch.nn.Upsample(scale_factor=2, mode="nearest"),
+                                 torch.nn.Upsample(scale_factor=2, mode="bilinear"))
+    for index, layer in enumerate(layers):
+        layer.f, layer.i, layer.type, layer.np = -1, index, type(layer).__name__, 0
+    assert replace_nearest_upsampling(layers) == 1
+    assert isinstance(layers[1], NearestUpsample2x) and (layers[1].f, layers[1].i) == (-1, 1)
+    assert isinstance(layers[2], torch.nn.Upsample)  # bilinear is another operation: left alone
+
+
+def test_the_robot_model_has_no_resize_and_compiles_at_the_atoms_instruction_set():
+    """OpenVINO's CPU plugin finds no SSE4.1 primitive for Resize; the robot model's graph has none and compiles."""
+    assert "Resize" not in {node.op_type for node in onnx.load(str(robot_path())).graph.node}
+    code_run = ("import openvino as ov; core = ov.Core(); "
+                f"core.compile_model(core.read_model({str(robot_path())!r}), 'CPU', "
+                "{'INFERENCE_NUM_THREADS': 1, 'INFERENCE_PRECISION_HINT': 'f32'}); print('compiled')")
+    result = subprocess.run([sys.executable, "-c", code_run], capture_output=True, text=True,
+                            env={**os.environ, "ONEDNN_MAX_CPU_ISA": "SSE41"})
+    assert result.returncode == 0 and "compiled" in result.stdout, result.stderr[-2000:]
