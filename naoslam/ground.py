@@ -157,9 +157,10 @@ class GroundView:
         across = np.array([-along[1], along[0], 0.0])
         radius, height = self.pole.radius, np.array([0.0, 0.0, self.pole.height])
         axis = range_m * along
-        points = [self.project(p) for p in (axis - radius * along, axis + radius * along + height,
-                                            axis + height / 2 - radius * across, axis + height / 2 + radius * across)]
-        return None if any(p is None for p in points) else points
+        points = np.array([axis - radius * along, axis + radius * along + height,
+                           axis + height / 2 - radius * across, axis + height / 2 + radius * across])
+        in_camera = (points - np.array([0.0, 0.0, self.pose.z])) @ self._rotation
+        return None if (in_camera[:, 2] <= 1e-9).any() else list(self.camera.project(in_camera))
 
     def _pole_size_px(self, range_m: float, bearing_rad: float) -> tuple[float, float] | None:
         """Pixel width (across the pole at half its height) and length (base's near edge to top's far edge) of an

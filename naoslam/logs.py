@@ -67,6 +67,10 @@ def load_utias(folder: Path, range_std: float = 0.1, bearing_std: float = math.r
     measurements = _table(folder / "Measurement.dat", 4)
     barcodes = _table(folder / "Barcodes.dat", 2)
     truth = _table(folder / "Landmark_Groundtruth.dat", 3)
+    for name, rows in (("Measurement.dat", measurements), ("Barcodes.dat", barcodes),
+                       ("Landmark_Groundtruth.dat", truth)):
+        if len(rows) == 0:
+            raise ValueError(f"{folder / name}: no rows, only comments - give the log's {name} as downloaded")
     subject_of_barcode = {int(b): int(s) for s, b in barcodes}
     landmarks = {str(int(s)): (x, y) for s, x, y in truth}
     start = odometry[0, 0]

@@ -244,6 +244,31 @@ def _calibrate_truth(row: str, named: str) -> Callable:
     return build
 
 
+def _annotations_with_range(value: float) -> Callable:
+    """`poles calibrate` on a dataset whose annotations.json gives one landmark the range ``value``."""
+    def build(tmp: Path, data: Path):
+        path = data / "annotations.json"
+        annotations = json.loads(path.read_text())
+        landmark = next(lm for entry in annotations["images"].values() for lm in entry["landmarks"])
+        landmark["range_m"] = value
+        path.write_text(json.dumps(annotations))  # json writes NaN and Infinity, as another tool might
+        return ["calibrate", "--data", str(data), "--out", str(tmp / "out")], data, "annotations.json: "
+
+    return build
+
+
+def _detection_checkpoint(tmp: Path) -> Path:
+    """An untrained YOLOv8n *detection* checkpoint, as Ultralytics saves one: boxes, no masks."""
+    import torch
+    from ultralytics.nn.tasks import DetectionModel
+
+    path = tmp / "inputs" / "detect.pt"
+    path.parent.mkdir(exist_ok=True)
+    torch.save({"model": DetectionModel("yolov8n.yaml", nc=6, verbose=False).half(), "train_args": {"task": "detect"},
+                "epoch": -1}, path)
+    return path
+
+
 def _calibration_with_law(tmp: Path, a: float) -> Path:
     """A calibration.json whose width law is ``a * px ** -1``: as `poles calibrate` writes it, the number aside."""
     from naoslam.measurement import PowerLaw, RangeCalibration
@@ -263,11 +288,12 @@ def _garbage(tmp: Path, name: str) -> Path:
     return path
 
 
-def _utias(tmp: Path, utias: Path, edit: Callable[[Path], None]) -> tuple[list[str], Path, str]:
+def _utias(tmp: Path, utias: Path, edit: Callable[[Path], None],
+           named: str = "Odometry.dat") -> tuple[list[str], Path, str]:
     folder = tmp / "inputs" / "utias"
     shutil.copytree(utias, folder)
     edit(folder)
-    return ["slam", "--utias", str(folder), "--duration", "20", "--out", str(tmp / "out")], folder, "Odometry.dat"
+    return ["slam", "--utias", str(folder), "--duration", "20", "--out", str(tmp / "out")], folder, named
 
 
 def _odometry(tmp: Path, rows: str, frame: str | None = None) -> tuple[list[str], Path, str]:
@@ -359,6 +385,10 @@ def _poison_odometry(folder: Path, value: str) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
+def _header_only(path: Path) -> None:
+    path.write_text("".join(line for line in path.read_text().splitlines(keepends=True) if line.startswith("#")))
+
+
 def _empty_odometry(folder: Path) -> None:
     (folder / "Odometry.dat").write_text("# Time [s]    forward velocity [m/s]    angular velocity[rad/s]\n")
 
@@ -391,6 +421,9 @@ OTHER_CASES = [
                                                              "--resume"], d, "nothing to resume")),
     _plain("evaluate: garbage .onnx", lambda tmp, d: (["evaluate", "--model", str(_garbage(tmp, "m.onnx")), "--data",
                                                        str(d), "--out", str(tmp / "out")], tmp / "inputs", "m.onnx")),
+    _plain("evaluate: a detection checkpoint", lambda tmp, d: (
+        ["evaluate", str(d), "--model", str(_detection_checkpoint(tmp)), "--out", str(tmp / "out")], tmp / "inputs",
+        "detect.pt: a detect model, not a segmentation model")),
     _plain("evaluate: garbage --calibration", lambda tmp, d: (
         ["evaluate", str(d), "--model", "colour-filter", "--calibration", str(_garbage(tmp, "c.json")), "--out",
          str(tmp / "out")], tmp / "inputs", "c.json")),
@@ -418,6 +451,8 @@ OTHER_CASES = [
         ["calibrate", "--data", str(d), "--out", str(tmp / "out"), "--plot", str(tmp / "fit.txt")], d,
         "name it *.png")),
     _plain("calibrate: range inf", _calibrate_truth("{image},{cls},inf", "ranges.csv:2")),
+    _plain("calibrate: annotations.json with a NaN range", _annotations_with_range(float("nan"))),
+    _plain("calibrate: annotations.json with a negative range", _annotations_with_range(-2.0)),
     _plain("calibrate: range 0", _calibrate_truth("{image},{cls},0", "ranges.csv:2")),
     _plain("calibrate: range not a number", _calibrate_truth("{image},{cls},far", "ranges.csv:2")),
     _plain("calibrate: unknown class", _calibrate_truth("{image},ball,1.0", "ranges.csv:2")),
@@ -452,14 +487,14 @@ OTHER_CASES = [
 ]
 
 
-def _utias_case(name: str, edit: Callable[[Path], None]) -> Case:
+def _utias_case(name: str, edit: Callable[[Path], None], named: str = "Odometry.dat") -> Case:
     def make(tmp: Path, data: Path):
         from tests.conftest import SHARED
 
         utias = SHARED / "utias-mrclam" / "dataset0"
         if not (utias / "Odometry.dat").is_file():
             pytest.skip("../shared/utias-mrclam is not on this machine")
-        return _utias(tmp, utias, edit)
+        return _utias(tmp, utias, edit, named)
 
     return Case(f"slam: UTIAS {name}", make)
 
@@ -470,6 +505,8 @@ UTIAS_CASES = [
     _utias_case("inf in odometry", lambda f: _poison_odometry(f, "inf")),
     _utias_case("binary odometry", lambda f: (f / "Odometry.dat").write_bytes(b"\x00\xff\xfe" * 100)),
     _utias_case("empty odometry", _empty_odometry),
+    *[_utias_case(f"{name} with only its header", lambda f, name=name: _header_only(f / name), named=name)
+      for name in ("Measurement.dat", "Landmark_Groundtruth.dat")],
 ]
 
 CASES = DATASET_CASES + COCO_CASES + OUTPUT_CASES + OTHER_CASES + UTIAS_CASES

@@ -85,3 +85,20 @@ def test_the_robot_model_has_no_resize_and_compiles_at_the_atoms_instruction_set
     result = subprocess.run([sys.executable, "-c", code_run], capture_output=True, text=True,
                             env={**os.environ, "ONEDNN_MAX_CPU_ISA": "SSE41"})
     assert result.returncode == 0 and "compiled" in result.stdout, result.stderr[-2000:]
+
+
+def test_a_robot_architecture_trains_exports_and_runs_in_the_front_end(synth_dataset, tmp_path):
+    """`poles train --model robot-p4-seg` builds the package's YAML (strides 8 and 16, 16 prototypes); its export
+    has no Resize and the front end reads its smaller segmentation head."""
+    from detector.cli import main
+
+    run = tmp_path / "run"
+    assert main(["train", "--data", str(synth_dataset), "--out", str(run), "--model", "robot-p4-seg", "--epochs", "1",
+                 "--imgsz", "64", "--batch", "8"]) == 0
+    assert main(["export", "--weights", str(run), "--out", str(tmp_path / "robot.onnx"), "--imgsz", "48", "64",
+                 "--data", str(synth_dataset)]) == 0
+    detector = LandmarkDetector(tmp_path / "robot.onnx")
+    assert detector.info.stride == 16 and detector.input_hw == (48, 64)
+    assert detector.session.get_outputs()[1].shape[1] == 16
+    assert "Resize" not in {node.op_type for node in onnx.load(str(tmp_path / "robot.onnx")).graph.node}
+    assert isinstance(detector(np.zeros((240, 320, 3), np.uint8)), list)

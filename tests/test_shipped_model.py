@@ -276,7 +276,7 @@ def _photographs() -> dict[str, np.ndarray]:
     return frames
 
 
-@pytest.mark.parametrize("model", ["shipped", "shipped-int8"])
+@pytest.mark.parametrize("model", ["shipped", "shipped-int8", "shipped-robot"])
 def test_shipped_onnx_finds_no_pole_in_photographs_it_never_saw(model):
     """An independent check of "no false positives on frames without poles": the red, blue and pink objects in
     these 27 photographs (a flag, a cup, a rocket, a motorcycle, a blue bus, people in red and yellow, a villa's

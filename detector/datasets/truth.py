@@ -39,9 +39,23 @@ def load_truth(dataset: Dataset, csv_path: Path | None = None) -> dict[str, Imag
             raise DatasetError([Problem("error", path, None,
                                         f"landmarks of {sample.image.name} do not follow its label file's classes",
                                         "regenerate annotations.json with the labels, or pass a CSV with --truth")])
+        for landmark in landmarks:
+            if "range_m" in landmark and not _is_distance(landmark["range_m"]):
+                raise DatasetError([Problem("error", path, None,
+                                            f"{sample.image.name}: range_m {landmark['range_m']!r} of its "
+                                            f"{landmark.get('cls')} is not a distance",
+                                            "give each landmark's true range in metres, a positive number, or "
+                                            "leave range_m out")])
         truth[sample.image.name] = [dict(lm, image_width=entry.get("width"), camera=entry.get("camera"))
                                     for lm in landmarks]
     return truth
+
+
+def _is_distance(value) -> bool:
+    """A range that a calibration may use: None (not known), or a finite number of metres above 0."""
+    if value is None:
+        return True
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and value > 0
 
 
 def _our_annotations(path: Path) -> dict | None:

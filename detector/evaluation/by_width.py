@@ -1,21 +1,12 @@
 """Recall by a pole's width in pixels: how small a pole a front end still finds (far poles are a few px wide)."""
 from __future__ import annotations
 
-import numpy as np
+from detector.evaluation.counting import ImageEvaluation, label_width_px
 
-from detector.evaluation.counting import ImageEvaluation
-from naoslam.detector import rotated_box_of_mask
+__all__ = ["WIDTH_EDGES_PX", "label_width_px", "recall_by_width", "width_bin_names"]
 
-#: Widths are given for a frame 640 px wide (the Nao's), so a 1280x960 frame's poles count at half their width.
-REFERENCE_FRAME_WIDTH_PX = 640
 #: Bin edges (px at 640 px frame width): far poles (< 10 px, about 5 m and beyond on a Nao), 10-16, 16-32, 32-64, near.
 WIDTH_EDGES_PX = (10, 16, 32, 64)
-
-
-def label_width_px(mask: np.ndarray) -> float:
-    """The label's width: the short side of the rotated box around its mask, scaled to a 640 px wide frame."""
-    box = rotated_box_of_mask(mask)
-    return 0.0 if box is None else box.width * REFERENCE_FRAME_WIDTH_PX / mask.shape[1]
 
 
 def width_bin_names() -> list[str]:
@@ -30,8 +21,8 @@ def recall_by_width(images: list[ImageEvaluation], conf: float) -> list[dict]:
     labels, found = [0] * len(names), [0] * len(names)
     for image in images:
         matched = {r for _, r in image.match(conf)}
-        for r, mask in enumerate(image.truth_masks):
-            bin_index = sum(label_width_px(mask) >= edge for edge in WIDTH_EDGES_PX)
+        for r, width in enumerate(image.truth_widths):
+            bin_index = sum(width >= edge for edge in WIDTH_EDGES_PX)
             labels[bin_index] += 1
             found[bin_index] += r in matched
     return [{"width": name, "labels": n, "found": k, "recall": k / n if n else None}

@@ -6,27 +6,33 @@ positive when its band-dividing point falls inside a same-class label (grown by 
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
 
 from detector.evaluation.predictors import Prediction
 from detector.matching import greedy_match, mask_iou
+from naoslam.detector import rotated_box_of_mask
 
 MATCH_IOU = 0.5
 #: IoU thresholds of the COCO-style mAP50-95.
 MAP_THRESHOLDS = np.linspace(0.5, 0.95, 10)
 POINT_TOLERANCE_PX = 3
+#: Widths are given for a frame 640 px wide (the Nao's), so a 1280x960 frame's poles count at half their width.
+REFERENCE_FRAME_WIDTH_PX = 640
 
 
 @dataclass
 class ImageEvaluation:
-    """One image's labels, predictions and their pairwise overlaps, from which counts at any threshold follow."""
+    """One image's labels, predictions and their pairwise overlaps, from which counts at any threshold follow.
+    Compact: no mask is kept (the prediction's are dropped once the overlaps are known), so memory does not grow
+    with the frames' size."""
 
     name: str
     truth_classes: list[str]
-    truth_masks: list[np.ndarray]
+    #: Each label's width (px at a 640 px frame width), for recall by width.
+    truth_widths: list[float]
     truth: list[dict | None]
     prediction: Prediction
     overlap: np.ndarray
@@ -62,7 +68,14 @@ def evaluate_image(name: str, truth_classes: list[str], truth_masks: list[np.nda
         overlap = overlap.reshape(len(prediction.points), len(truth_masks))
     else:
         overlap = mask_iou(prediction.masks, truth_masks)
-    return ImageEvaluation(name, truth_classes, truth_masks, truth, prediction, overlap, same_class, prediction.points is not None)
+    return ImageEvaluation(name, truth_classes, [label_width_px(m) for m in truth_masks], truth,
+                           replace(prediction, masks=[]), overlap, same_class, prediction.points is not None)
+
+
+def label_width_px(mask: np.ndarray) -> float:
+    """The label's width: the short side of the rotated box around its mask, scaled to a 640 px wide frame."""
+    box = rotated_box_of_mask(mask)
+    return 0.0 if box is None else box.width * REFERENCE_FRAME_WIDTH_PX / mask.shape[1]
 
 
 def _inside(point: tuple[float, float], mask: np.ndarray) -> bool:

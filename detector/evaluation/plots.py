@@ -103,26 +103,26 @@ def _outline(image: np.ndarray, mask: np.ndarray, colour, text: str) -> None:
         draw_label(image, text, (x, max(12, y - 4)), colour)
 
 
-def write_overlays(images: list[ImageEvaluation], frames: dict[str, Path], conf: float, folder: Path) -> int:
-    """One JPEG per image with a false positive or a false negative; returns how many were written."""
-    written = 0
-    for image in images:
-        counts = image.counts(conf)
-        if not counts["fp"] and not counts["fn"]:
-            continue
-        frame = cv2.imread(str(frames[image.name]))
-        pairs = image.match(conf)
-        matched_p, matched_r = {p for p, _ in pairs}, {r for _, r in pairs}
-        pred = image.prediction
-        for p in image.kept(conf):
-            colour = TP_BGR if p in matched_p else FP_BGR
-            _outline(frame, pred.masks[p], colour, f"{pred.classes[p]} {pred.scores[p]:.2f}")
-            if pred.points is not None:
-                cv2.drawMarker(frame, tuple(int(v) for v in pred.points[p]), colour, cv2.MARKER_CROSS, 12, 2)
-        for r, (cls, mask) in enumerate(zip(image.truth_classes, image.truth_masks)):
-            if r not in matched_r:
-                _outline(frame, mask, FN_BGR, f"missed {cls}")
-        ok, encoded = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, 85])
-        write_bytes(folder / image.name, encoded.tobytes())
-        written += 1
-    return written
+def write_overlay(image: ImageEvaluation, frame: np.ndarray, masks: list[np.ndarray], truth_masks: list[np.ndarray],
+                  conf: float, folder: Path) -> bool:
+    """``folder/<image>.jpg`` when the image has a false positive or a false negative at ``conf``: the frame with
+    found, wrong and missed poles outlined (``masks``: the prediction's, ``truth_masks``: the labels'). Returns
+    whether it was written."""
+    counts = image.counts(conf)
+    if not counts["fp"] and not counts["fn"]:
+        return False
+    frame = frame.copy()
+    pairs = image.match(conf)
+    matched_p, matched_r = {p for p, _ in pairs}, {r for _, r in pairs}
+    pred = image.prediction
+    for p in image.kept(conf):
+        colour = TP_BGR if p in matched_p else FP_BGR
+        _outline(frame, masks[p], colour, f"{pred.classes[p]} {pred.scores[p]:.2f}")
+        if pred.points is not None:
+            cv2.drawMarker(frame, tuple(int(v) for v in pred.points[p]), colour, cv2.MARKER_CROSS, 12, 2)
+    for r, (cls, mask) in enumerate(zip(image.truth_classes, truth_masks)):
+        if r not in matched_r:
+            _outline(frame, mask, FN_BGR, f"missed {cls}")
+    ok, encoded = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, 85])
+    write_bytes(folder / image.name, encoded.tobytes())
+    return True

@@ -67,7 +67,10 @@ class TorchPredictor(Predictor):
     def __init__(self, path: Path, imgsz: int = 640):
         from ultralytics import YOLO
 
-        self.model = YOLO(str(path), task="segment")
+        self.model = YOLO(str(path))
+        if self.model.task != "segment":
+            raise ValueError(f"{path}: a {self.model.task} model, not a segmentation model - evaluate a *-seg "
+                             "checkpoint (masks are what the thesis counted)")
         self.imgsz = imgsz
         self.name = Path(path).name
 

@@ -16,7 +16,7 @@ from detector.evaluation.by_width import recall_by_width, width_bin_names
 from detector.evaluation.counting import (ImageEvaluation, best_threshold, confidence_sweep, confusion_matrix,
                                           evaluate_image, map_scores, outcome, precision_recall, totals)
 from detector.evaluation.paired import f1_difference
-from detector.evaluation.plots import plot_confusion, plot_per_image, plot_recall_by_width, plot_sweep, write_overlays
+from detector.evaluation.plots import plot_confusion, plot_per_image, plot_recall_by_width, plot_sweep, write_overlay
 from detector.evaluation.predictors import ColourFilterPredictor, Predictor
 from detector.atomic import write_json
 from naoslam.camera import NAO_HFOV_DEG
@@ -33,15 +33,20 @@ def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", c
         held = [f"{name} ({count} images)" for name in SPLITS if (count := len(dataset.split(name)))]
         raise ValueError(f"{data}: the {split!r} split has no images - pick another with --split: {', '.join(held)}")
     truth = load_truth(dataset)
-    images, frames = [], {}
+    out = Path(out)
+    overlays = out / "errors"
+    images, written = [], 0
     for sample in show_progress(samples, f"evaluating {predictor.name}", "img", enabled=progress):
+        # Frames stream through: only each image's compact counts stay, and its overlay is written while its masks
+        # are in hand, so memory does not grow with the number or size of the frames.
         frame = cv2.imread(str(sample.image))
         h, w = frame.shape[:2]
         masks = [polygon_to_mask(inst.pixels(w, h), w, h) for inst in sample.instances]
         entries = truth.get(sample.image.name) or [None] * len(sample.instances)
-        images.append(evaluate_image(sample.image.name, [i.cls for i in sample.instances], masks, entries,
-                                     predictor(frame)))
-        frames[sample.image.name] = sample.image
+        prediction = predictor(frame)
+        image = evaluate_image(sample.image.name, [i.cls for i in sample.instances], masks, entries, prediction)
+        written += write_overlay(image, frame, prediction.masks, masks, conf, overlays)
+        images.append(image)
     counts = totals(images, conf)
     precision, recall, f1 = precision_recall(counts)
     sweep = confidence_sweep(images)
@@ -59,13 +64,12 @@ def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", c
     metrics["recall_by_width"] = recall_by_width(images, conf)
     metrics.update(map_scores(images, CLASSES) or {})
     metrics.update(_measurement_errors(images, conf, predictor))
-    out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     plot_per_image(metrics["per_image"], out / "per_image.png", predictor.name)
     plot_sweep(sweep, out / "sweep.png", predictor.name)
     plot_confusion(confusion, CLASSES, out / "confusion.png", predictor.name)
     plot_recall_by_width(metrics["recall_by_width"], out / "recall_by_width.png", predictor.name)
-    metrics["overlays"] = write_overlays(images, frames, conf, out / "errors")
+    metrics["overlays"] = written
     write_json(out / "metrics.json", metrics)
     return metrics
 
