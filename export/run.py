@@ -30,7 +30,8 @@ class ExportMismatch(ValueError):
 class ExportJob:
     weights: Path
     out: Path
-    input_hw: tuple[int, int] = NAO_INPUT_HW
+    #: None: the checkpoint's training width, its height from the verification frames' shape (``input_size``).
+    input_hw: tuple[int, int] | None = None
     data: Path | None = None
     int8: bool = False
     calib_data: Path | None = None
@@ -43,7 +44,7 @@ class ExportJob:
         if self.out.suffix != ".onnx":
             raise ValueError(f"--out {self.out}: name the ONNX file to write, ending in .onnx, e.g. "
                              f"{self.out.with_name(self.out.name + '.onnx')}; nothing was written")
-        if any(side < 16 or side % 16 for side in self.input_hw):
+        if self.input_hw is not None and any(side < 16 or side % 16 for side in self.input_hw):
             raise ValueError(f"--imgsz {self.input_hw[0]} {self.input_hw[1]}: height and width must be positive "
                              "multiples of the model's stride, 32 for YOLOv8 (the Nao's frames: 480 640) or 16 for "
                              "robot-p4-seg (240 320)")
@@ -88,25 +89,36 @@ def read_frames(paths: list[Path]) -> list[np.ndarray]:
     return frames
 
 
+def input_size(checkpoint: dict, frame_hw: tuple[int, int]) -> tuple[int, int]:
+    """The input (height, width) a checkpoint is exported at by default: the width it was trained at, the height
+    in the frames' proportion, rounded up to a multiple of 32 (Ultralytics' predictor rounds so). Roboflow's
+    square frames give a square input; the Nao's 640x480 frames give 480x640 (256x320 for a 320 px robot model)."""
+    trained = (checkpoint.get("train_args") or {}).get("imgsz")
+    width = int(trained if isinstance(trained, int) else max(trained or NAO_INPUT_HW))
+    width = -(-width // 32) * 32
+    return -(-round(width * frame_hw[0] / frame_hw[1]) // 32) * 32, width
+
+
 def run_export(job: ExportJob) -> dict:
     """Export, verify, optionally quantise; returns the report (also written to ``job.report_path``)."""
     from detector.model_files import read_checkpoint
 
-    read_checkpoint(job.weights)  # a clear error for a missing file or one that is not a checkpoint
+    checkpoint = read_checkpoint(job.weights)  # a clear error for a missing file or one that is not a checkpoint
     data = job.data or training_dataset(job.weights)
     inputs = tuple(path for path in (job.weights, data, job.calib_data) if path is not None)
     for output in (job.out, job.report_path) + ((job.int8_path,) if job.int8 else ()):
         check_output_file(output, job.force, inputs)
     frames = read_frames(dataset_images(data, ("valid", "test"), VERIFY_FRAMES, "--data"))
+    input_hw = job.input_hw or input_size(checkpoint, frames[0].shape[:2])
     calibration = dataset_images(job.calib_data or data, ("train",), CALIBRATION_IMAGES,
                                  "--calib-data" if job.calib_data else "--data (or --calib-data)") if job.int8 else []
     with ExitStack() as outputs:  # every file lands together, after the report is made, or none does
         fp32_path = outputs.enter_context(atomic_path(job.out))
-        export_onnx(job.weights, fp32_path, job.input_hw, force=True, dynamic=job.dynamic)
-        reference = ultralytics_predict(job.weights, frames, job.input_hw, job.conf)
+        export_onnx(job.weights, fp32_path, input_hw, force=True, dynamic=job.dynamic)
+        reference = ultralytics_predict(job.weights, frames, input_hw, job.conf)
         fp32 = frontend_predict(fp32_path, frames, job.conf)
         agreement = compare(reference, fp32, job.conf, FP32_TOLERANCE.margin)
-        report = {"weights": str(job.weights), "onnx": str(job.out), "input_hw": list(job.input_hw),
+        report = {"weights": str(job.weights), "onnx": str(job.out), "input_hw": list(input_hw),
                   "dynamic": job.dynamic,
                   "verify_frames": len(frames), "conf": job.conf,
                   "fp32_vs_pytorch": agreement.as_dict(), "fp32_problems": agreement.problems(FP32_TOLERANCE)}
@@ -134,6 +146,14 @@ def _recommend(report: dict) -> str:
     return "int8" if latency["int8"] < 0.9 * latency["fp32"] else "fp32"
 
 
+def _verdict(agreement: dict, problems: list[str]) -> str:
+    if problems:
+        return "; ".join(problems)
+    if not agreement["reference"] and not agreement["candidate"]:
+        return "nothing compared: no detection on any frame (give --data frames with poles, or a lower --conf)"
+    return "agrees"
+
+
 def print_report(report: dict) -> None:
     """The agreement and speed figures as a table, one column per comparison."""
     from detector.console import make_console
@@ -155,8 +175,8 @@ def print_report(report: dict) -> None:
             "mask IoU min / mean": lambda a: f"{a['mask_iou_min']:.4f} / {a['mask_iou_mean']:.4f}",
             "max score difference": lambda a: f"{a['score_diff_max']:.4f}"}
     for name, cell in rows.items():
-        table.add_row(name, *(cell(a) for _, a, _ in comparisons))
-    table.add_row("verdict", *("; ".join(problems) or "agrees" for _, _, problems in comparisons))
+        table.add_row(name, *(cell(a) if a["reference"] or a["candidate"] else "-" for _, a, _ in comparisons))
+    table.add_row("verdict", *(_verdict(a, problems) for _, a, problems in comparisons))
     console = make_console()
     console.print(table)
     latency = ", ".join(f"{k} {v:.1f} ms" for k, v in report["latency_ms"].items())

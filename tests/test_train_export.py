@@ -209,3 +209,24 @@ def test_an_interrupted_run_resumes_where_it_stopped(synth_dataset, tmp_path, mo
     assert read_results(tmp_path / "run" / "results.csv")["epoch"] == [1.0]
     train_model(synth_dataset, tmp_path / "run", settings, resume=True)
     assert read_results(tmp_path / "run" / "results.csv")["epoch"] == [1.0, 2.0]
+
+
+@pytest.mark.parametrize("trained, frame_hw, expected", [(640, (480, 640), (480, 640)), (640, (640, 640), (640, 640)),
+                                                         (320, (480, 640), (256, 320)), ([96, 128], (240, 320), (96, 128))])
+def test_export_takes_the_training_width_and_the_frames_proportion_by_default(trained, frame_hw, expected):
+    """Roboflow's square frames export square, the Nao's 4:3 frames at 4:3, each at the width the model learnt."""
+    from export.run import input_size
+
+    assert input_size({"train_args": {"imgsz": trained}}, frame_hw) == expected
+
+
+def test_an_export_whose_frames_show_no_detection_says_nothing_was_compared(capsys):
+    from export.run import print_report
+
+    empty = {"frames": 4, "reference": 0, "candidate": 0, "matched": 0, "unmatched_confident": 0,
+             "class_mismatches": 0, "box_iou_min": 1.0, "box_iou_mean": 1.0, "mask_iou_min": 1.0,
+             "mask_iou_mean": 1.0, "score_diff_max": 0.0}
+    print_report({"input_hw": [480, 640], "verify_frames": 4, "conf": 0.25, "fp32_vs_pytorch": empty,
+                  "fp32_problems": [], "latency_ms": {"fp32": 40.0}, "recommended": "fp32", "onnx": "m.onnx"})
+    printed = capsys.readouterr().out
+    assert "nothing compared" in printed and "agrees" not in printed

@@ -56,8 +56,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                         help="trained checkpoint (best.pt), or the `poles train` run folder that holds it")
     export.add_argument("--out", type=Path, required=True,
                         help="ONNX file to write, e.g. model.onnx (INT8 goes beside it as *-int8.onnx)")
-    export.add_argument("--imgsz", type=int, nargs=2, default=(480, 640), metavar=("HEIGHT", "WIDTH"),
-                        help="network input (default 480 640: the Nao's frames without padding)")
+    export.add_argument("--imgsz", type=int, nargs=2, metavar=("HEIGHT", "WIDTH"),
+                        help="network input (default: the width the model was trained at, the height in the "
+                             "proportion of the --data frames: 480 640 for the Nao's frames at 640 px)")
     export.add_argument("--data", type=Path, help="dataset whose valid/test frames verify the export "
                                                   "(default: the one the model was trained on)")
     export.add_argument("--int8", action="store_true", help="also write a static INT8 copy")
@@ -124,7 +125,7 @@ def _train(args: argparse.Namespace) -> int:
 def _export(args: argparse.Namespace) -> int:
     from export.run import ExportJob, print_report, run_export
 
-    job = ExportJob(args.weights, args.out, tuple(args.imgsz), args.data, args.int8, args.calib_data,
+    job = ExportJob(args.weights, args.out, tuple(args.imgsz) if args.imgsz else None, args.data, args.int8, args.calib_data,
                     args.reduce_range, args.conf, args.force, args.dynamic)
     print_report(run_export(job))
     return 0
