@@ -107,6 +107,11 @@ def test_a_class_that_names_no_landmark_is_refused_only_where_outlines_use_it(da
     capsys.readouterr()
     assert main(["convert", str(data), "--out", str(tmp_path / "refused")]) == 2
     assert "'robot' names no landmark and labels 1 outline(s)" in capsys.readouterr().err
+    # --fix would drop that outline and write a copy that passes check: it refuses instead, naming --rename
+    assert main(["check", str(data), "--fix", "--out", str(tmp_path / "fixed")]) != 0
+    refusal = capsys.readouterr().err
+    assert "--fix does not delete the outlines of 1 class(es)" in refusal and "--rename" in refusal
+    assert not (tmp_path / "fixed").exists()
 
 
 def test_alphabetical_export_trains_exports_and_evaluates(alphabetical, tmp_path):

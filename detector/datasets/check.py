@@ -16,6 +16,7 @@ from detector.datasets.io import DatasetWriter, load_dataset
 from detector.datasets.jpeg import truncated_jpeg
 from detector.datasets.labels import BOX_ONLY
 from detector.datasets.model import SPLITS, Dataset, DatasetError, Problem, Sample
+from detector.datasets.names import UNNAMED_CLASS_OUTLINES
 from detector.datasets.orientation import UPRIGHT, encoded_orientation
 from detector.atomic import write_text
 from naoslam.landmarks import CLASSES
@@ -182,6 +183,12 @@ def write_fixed_copy(report: CheckReport, out: str | Path, force: bool = False) 
     if boxes:
         raise DatasetError([boxes[0], Problem("error", report.dataset.root, None, f"--fix cannot turn {len(boxes)} "
                                               "box label(s) into outlines", "re-export the dataset")])
+    unnamed = [p for p in report.errors if UNNAMED_CLASS_OUTLINES in p.message]
+    if unnamed:  # dropping them would leave a copy that passes `check` and trains on fewer poles, or none
+        raise DatasetError([*unnamed, Problem("error", report.dataset.root, None, f"--fix does not delete the "
+                                              f"outlines of {len(unnamed)} class(es) that name no landmark",
+                                              "rename them to pole codes with `poles convert --rename`, or delete "
+                                              "them in Roboflow, then check again")])
     seen: set[str] = set()
     with DatasetWriter(out, force=force, protect=report.dataset.input_folders()) as writer:
         for sample in report.dataset.samples:

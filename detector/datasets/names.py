@@ -67,6 +67,10 @@ def class_codes(raw_names: list, source: Path, renames: dict[str, str] | None = 
     return codes, problems
 
 
+#: The words every refusal of a class that names no landmark but labels outlines carries (``--fix`` looks for them).
+UNNAMED_CLASS_OUTLINES = "names no landmark and labels"
+
+
 def unknown_class_problems(source: Path, raw_names: list, codes: tuple[str | None, ...],
                            outlines: Counter) -> list[Problem]:
     """The one rule for a declared class that names no landmark: an error where outlines are labelled with it (they
@@ -77,8 +81,8 @@ def unknown_class_problems(source: Path, raw_names: list, codes: tuple[str | Non
         if code is not None:
             continue
         if outlines[index]:
-            problems.append(Problem("error", source, None, f"class {index} {str(given)!r} names no landmark and "
-                                    f"labels {outlines[index]} outline(s)", "if it is a pole class, read it as one: "
+            problems.append(Problem("error", source, None, f"class {index} {str(given)!r} {UNNAMED_CLASS_OUTLINES} "
+                                    f"{outlines[index]} outline(s)", "if it is a pole class, read it as one: "
                                     f"`poles convert DATA --out NEW --rename '{given}=CODE'` with CODE one of "
                                     f"{' '.join(CLASSES)} (bands top first); if not, delete its outlines"))
         else:
