@@ -11,6 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -424,3 +425,18 @@ def test_check_of_a_folder_that_is_no_dataset_prints_the_error_alone(tmp_path, c
     out = capsys.readouterr().out
     assert "neither data.yaml nor a COCO" in out
     assert "split" not in out and "images" not in out
+
+
+def test_an_output_inside_the_folder_data_yaml_path_names_is_refused_even_with_force(synth_dataset, tmp_path, capsys):
+    """data.yaml's `path:` makes its folder an input: nothing may be written, or replaced, inside it."""
+    elsewhere = tmp_path / "elsewhere"
+    shutil.copytree(synth_dataset, elsewhere)
+    (elsewhere / "mydocs").mkdir()
+    (elsewhere / "mydocs" / "thesis.txt").write_text("four years of work")
+    pointer = tmp_path / "pointer"
+    pointer.mkdir()
+    config = yaml.safe_load((synth_dataset / "data.yaml").read_text())
+    (pointer / "data.yaml").write_text(yaml.safe_dump({**config, "path": "../elsewhere"}))
+    assert main(["convert", str(pointer), "--out", str(elsewhere / "mydocs"), "--force"]) == 2
+    assert "elsewhere" in capsys.readouterr().err
+    assert (elsewhere / "mydocs" / "thesis.txt").read_text() == "four years of work"

@@ -138,7 +138,7 @@ def _load_yolo(yaml_path: Path, renames: dict[str, str] | None) -> Dataset:
     if None in names:
         problems += unknown_class_problems(yaml_path, raw_names, names, unknown_uses)
     problems += _duplicate_stems(samples)
-    return Dataset(root, samples, problems)
+    return Dataset(root, samples, problems, (base,) if base != root else ())
 
 
 def _class_names(yaml_path: Path, config: dict, problems: list[Problem],

@@ -74,6 +74,8 @@ class Dataset:
     root: Path
     samples: list[Sample]
     problems: list[Problem] = field(default_factory=list)
+    #: Folders the dataset names beside its root (data.yaml's ``path:``), read from like the root itself.
+    named_folders: tuple[Path, ...] = ()
 
     def split(self, name: str) -> list[Sample]:
         """The samples of one split (``train``, ``valid`` or ``test``) that have an image."""
@@ -86,7 +88,7 @@ class Dataset:
     def input_folders(self) -> tuple[Path, ...]:
         """Every folder this dataset is read from (its root, each split's image and label folders, wherever data.yaml's
         ``path:`` puts them): outputs may neither be nor hold nor lie inside any of them."""
-        folders = {Path(self.root).resolve()}
+        folders = {Path(self.root).resolve(), *(Path(folder).resolve() for folder in self.named_folders)}
         for sample in self.samples:
             for file in (sample.image, sample.label):
                 if file is not None:
