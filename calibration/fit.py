@@ -14,16 +14,10 @@ from naoslam.measurement import PowerLaw, RangeCalibration, bearing_of_column, f
 #: Distance bins (m) of the per-distance report.
 RANGE_BINS = (0.0, 0.75, 1.25, 2.0, 3.0, 4.0, 6.0, 9.5)
 #: The least relative range noise each law is given, whatever its fit's residuals, unless ``--noise-data`` measures
-#: it: still calibration shots show less than a walking robot's frames do (sway blurs and widens a mask). Measured
-#: with the shipped model v5 (``robust_spread``, bias included) on rendered walks, ``poles synth --walk
-#: {square,circle,figure8} --seed {10,11,12}`` then ``poles calibrate --model shipped --noise-data ...``: width law
-#: 15.9 % (3,587 sightings, reading 9 % near), height law 2.0 % (3,423); re-measured on 2026-11-25 with the laws
-#: fitted on shots out to 9 m: 16.2 % and 1.8 %; then (rule v20) on level sizes of shots whose camera rolls:
-#: 12.8 % (reading 4 % near) and 1.7 %. A filter told less than this is over-confident and maps a pole twice.
-#: The colour filter's law, on the same nine walks (2,242 sightings): fitted on the renderer's exact band distances,
-#: it read 7 % near, and told its still shots' 2.6 % it had every sighting gated out of localisation on the true map;
-#: fitted on the filter's own band distances, 6.6 % (reading 3.7 % near); on those taken to the optical axis as the
-#: box sizes are (both 2026-11-25), 2.8 % (reading 0.6 % near).
+#: it: still calibration shots show less than a walking robot's frames do (sway blurs and widens a mask), and a
+#: filter told less than a walk shows is over-confident and maps a pole twice. The floors are the spread the shipped
+#: model's masks (and the colour filter's band distances) show on nine rendered walks; docs/range-calibration.md
+#: gives the measurements.
 WALK_RELATIVE_STD = {"width": 0.13, "height": 0.020, "colour": 0.028}
 #: Fewest sightings of a walk that measure a law's noise (``--noise-data``).
 MIN_NOISE_SIGHTINGS = 20

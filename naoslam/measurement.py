@@ -75,12 +75,12 @@ class RangeCalibration:
     hfov_deg: float = NAO_HFOV_DEG
     colour_law: PowerLaw | None = None
     extra: dict = field(default_factory=dict)
-    #: The laws were fitted on on-axis sizes (:func:`on_axis_size`); calibrations from before 2026-11-24 were not.
+    #: Whether the laws were fitted on on-axis sizes (:func:`on_axis_size`); a calibration that says False was not.
     off_axis_corrected: bool = False
-    #: The colour law too was fitted on on-axis band distances; calibrations from before 2026-11-25's fix were not.
+    #: Whether the colour law was fitted on on-axis band distances.
     colour_off_axis_corrected: bool = False
     #: The network input width whose masks the laws were fitted to: a model's masks, and so its pixel sizes, change
-    #: with it. None: label masks, or a calibration from before 2026-11-24 (not checked).
+    #: with it. None: fitted on label masks, or not recorded (not checked).
     input_width: int | None = None
 
     def __post_init__(self) -> None:

@@ -178,7 +178,7 @@ def _against_shipped(gain: dict) -> str:
 
 
 def _slam(s: dict) -> str:
-    length = f" of {s['walk_seconds']:.0f} seconds" if "walk_seconds" in s else ""  # (absent before 2026-11-24)
+    length = f" of {s['walk_seconds']:.0f} seconds" if "walk_seconds" in s else ""  # absent from older summaries
     out = (f"<h2>EKF SLAM on a simulated walk</h2><p>A square walk{length} on the SPL field with the six poles; "
            f"frames ray-cast along it go through each front end into {html.escape(s['backend'])}.</p>")
     rows = []
