@@ -76,7 +76,7 @@ def main(count: int, repeats: int) -> None:
     from ultralytics import YOLO
     from ultralytics.utils.torch_utils import get_flops
 
-    from detector.training.starting_point import SHIPPED_WEIGHTS
+    from detector.model_files import SHIPPED_WEIGHTS
     from naoslam.camera import PinholeCamera
     from naoslam.colour_filter import ColourFilter
     from naoslam.detector import LandmarkDetector

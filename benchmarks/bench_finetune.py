@@ -49,7 +49,7 @@ def main(minutes: list[float]) -> None:
     from detector.evaluation.predictors import TorchPredictor
     from detector.evaluation.run import evaluate
     from detector.synth.generate import SynthJob, generate_dataset
-    from detector.training.starting_point import SHIPPED_WEIGHTS
+    from detector.model_files import SHIPPED_WEIGHTS
 
     with tempfile.TemporaryDirectory() as tmp:
         data = generate_dataset(Path(tmp) / "user", SynthJob(200, seed=4242, width=1280, height=960, hfov_deg=60.97),

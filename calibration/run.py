@@ -1,7 +1,6 @@
 """``poles calibrate``: measure, fit, report, plot, write calibration.json, optionally embed it in a model."""
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -57,19 +56,6 @@ def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv:
     if plot:
         plot_fit(samples, calibration, plot, walk)
     return result
-
-
-def load_calibration(path: Path) -> RangeCalibration:
-    """Read calibration.json (as written by ``poles calibrate``); any other file is refused in one line naming it."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such calibration file - write one with `poles calibrate`")
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-        return RangeCalibration.from_dict(data.get("calibration", data))
-    except (ValueError, AttributeError, KeyError, TypeError) as error:  # ValueError: JSON, UTF-8, the laws' checks
-        raise ValueError(f"{path}: not a calibration written by `poles calibrate` ({type(error).__name__}: {error}) "
-                         "- write one with `poles calibrate`") from None
 
 
 def embed_calibration(model: Path, calibration: RangeCalibration) -> Path:

@@ -1,8 +1,10 @@
-"""Reading the files a model lives in, for every stage: a checkpoint (``read_checkpoint``), an ONNX model's
-naoslam metadata (``read_info``, ``write_metadata``, ``add_metadata``) and a checkpoint's own answers through
-Ultralytics (``ultralytics_predict``), which export verification and evaluation both compare against."""
+"""Reading the files a model lives in, for every stage: where the shipped checkpoints are and which checkpoint a run
+folder stands for, a checkpoint (``read_checkpoint``), an ONNX model's naoslam metadata (``read_info``,
+``write_metadata``, ``add_metadata``), a calibration.json (``load_calibration``) and a checkpoint's own answers
+through Ultralytics (``ultralytics_predict``), which export verification and evaluation both compare against."""
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -10,7 +12,34 @@ import numpy as np
 import onnx
 
 from detector.atomic import atomic_path
+from naoslam.measurement import RangeCalibration
 from naoslam.model_info import METADATA_KEY, ModelInfo
+
+#: The pole-pretrained checkpoint shipped with the package (the source of naoslam's shipped accurate models).
+SHIPPED_WEIGHTS = Path(__file__).resolve().parent / "weights" / "poles-yolov8n-seg.pt"
+#: The robot model's checkpoint (the source of naoslam's ``shipped-robot``); train it on with ``--weights``.
+ROBOT_WEIGHTS = SHIPPED_WEIGHTS.with_name("poles-robot-seg.pt")
+
+
+def run_checkpoint(path: str | Path) -> Path:
+    """A ``poles train`` run folder stands for its ``weights/best.pt``; any other path is returned as given."""
+    best = Path(path) / "weights" / "best.pt"
+    return best if Path(path).is_dir() and best.is_file() else Path(path)
+
+
+def load_calibration(path: Path) -> RangeCalibration:
+    """Read calibration.json (as written by ``poles calibrate``); any other file is refused in one line naming it."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such calibration file - write one with `poles calibrate`")
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        return RangeCalibration.from_dict(data.get("calibration", data))
+    except (ValueError, AttributeError, KeyError, TypeError) as error:  # ValueError: JSON, UTF-8, the laws' checks
+        raise ValueError(f"{path}: not a calibration written by `poles calibrate` ({type(error).__name__}: {error}) "
+                         "- write one with `poles calibrate`") from None
+
+
 
 
 def read_checkpoint(path: Path) -> dict:

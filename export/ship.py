@@ -9,8 +9,8 @@ import shutil
 from dataclasses import replace
 from pathlib import Path
 
-from calibration.run import load_calibration
-from detector.training.starting_point import ROBOT_WEIGHTS, SHIPPED_WEIGHTS
+from detector.model_files import load_calibration
+from detector.model_files import ROBOT_WEIGHTS, SHIPPED_WEIGHTS
 from detector.model_files import read_info, write_metadata
 from export.onnx_export import int8_path
 from detector.atomic import atomic_path

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from calibration.fit import WALK_RELATIVE_STD, calibrate, fit_power_law
-from calibration.run import load_calibration
+from detector.model_files import load_calibration
 from calibration.samples import measure_samples, open_ranged
 from detector.cli import main
 from detector.cli.evaluation_commands import FALLBACK_CONF

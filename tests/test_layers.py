@@ -67,3 +67,15 @@ def test_the_runtime_imports_nothing_of_the_training_side():
 @pytest.mark.parametrize("graph, expected", [({"a": {"b"}, "b": {"a"}}, True), ({"a": {"b"}, "b": set()}, False)])
 def test_a_cycle_is_found(graph, expected):
     assert bool(_cycle(graph)) is expected
+
+
+#: The training side's stages: each imports the core (datasets, file safety, console, model files) and naoslam,
+#: never another stage; the command line, the demo and the SLAM runs sit on top of them.
+STAGES = ("augment", "export", "calibration", "detector.training", "detector.evaluation", "detector.synth")
+
+
+def test_no_stage_imports_another():
+    crossing = {(_layer(module), _layer(imported)) for module, imports in _import_graph().items()
+                for imported in imports
+                if _layer(module) in STAGES and _layer(imported) in STAGES and _layer(imported) != _layer(module)}
+    assert crossing == set()

@@ -17,7 +17,7 @@ import torch
 import yaml
 
 from detector.cli import main
-from detector.training.starting_point import SHIPPED_WEIGHTS
+from detector.model_files import SHIPPED_WEIGHTS
 from detector.training.train import TrainSettings, parse_hyperparameters, train_model
 from export.ship import SIZE_BUDGET, shipped_files
 from naoslam.camera import CameraPose

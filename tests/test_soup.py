@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from detector.cli import main
-from detector.training.starting_point import SHIPPED_WEIGHTS
+from detector.model_files import SHIPPED_WEIGHTS
 from detector.model_files import read_checkpoint
 from naoslam.landmarks import CLASSES
 

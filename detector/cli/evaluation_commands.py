@@ -47,7 +47,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
 
 
 def _evaluate(args: argparse.Namespace) -> int:
-    from calibration.run import load_calibration
+    from detector.model_files import load_calibration
     from detector.datasets.io import output_folder
     from detector.evaluation.predictors import make_predictor
     from detector.evaluation.run import evaluate, print_metrics

@@ -103,7 +103,7 @@ def _slam(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from calibration.run import load_calibration
+    from detector.model_files import load_calibration
     from detector.datasets.io import output_folder
     from detector.slam.comparison import BACKENDS, compare_backends, print_comparison
     from detector.slam.outputs import write_outputs

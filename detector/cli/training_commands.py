@@ -9,7 +9,7 @@ from detector.cli.arguments import (add_dataset_argument, add_input_width_argume
                                     thread_choice, whole_number)
 from detector.training import defaults
 from detector.training.openmp_wait import choose_wait_policy
-from detector.training.starting_point import run_checkpoint
+from detector.model_files import run_checkpoint
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:

@@ -14,7 +14,8 @@ from rich.table import Table
 
 from detector.console import make_console
 from detector.demo.stages import StageFailed, StageLedger, file_fingerprint, stage_key
-from detector.training.starting_point import SHIPPED_WEIGHTS, starting_point
+from detector.model_files import SHIPPED_WEIGHTS
+from detector.training.starting_point import starting_point
 from naoslam.shipped import shipped_path
 
 console = make_console()
@@ -213,7 +214,8 @@ def _export(weights: Path, onnx: Path, budget: Budget, data: Path) -> dict:
 
 
 def _calibrate(folder: Path, models: list[Path], budget: Budget, seed: int) -> dict:
-    from calibration.run import embed_calibration, load_calibration, run_calibration
+    from calibration.run import embed_calibration, run_calibration
+    from detector.model_files import load_calibration
     from detector.synth.generate import SynthJob, generate_dataset
     from export.onnx_export import int8_path
 
@@ -238,7 +240,7 @@ def _evaluate(folder: Path, models: list[Path], data: Path, calibration_json: Pa
     into ``folder``, replaced whole (no overlay of an earlier run stays beside this one's). ``against_shipped``: the
     first model's F1 less the shipped model's on the same test frames, with its 95 % interval over frames: what the
     training bought."""
-    from calibration.run import load_calibration
+    from detector.model_files import load_calibration
     from detector.datasets.io import output_folder
     from detector.evaluation.paired import f1_difference
     from detector.evaluation.predictors import make_predictor
@@ -281,7 +283,7 @@ def operating_threshold(validation: dict, starting_conf: float | None) -> tuple[
 
 
 def _slam(folder: Path, model: Path, calibration_json: Path, budget: Budget, conf: float, seed: int) -> dict:
-    from calibration.run import load_calibration
+    from detector.model_files import load_calibration
     from detector.datasets.io import output_folder
     from detector.slam.comparison import BACKENDS, compare_backends
     from detector.slam.outputs import write_outputs

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from detector.training.starting_point import run_checkpoint
+from detector.model_files import run_checkpoint
 from naoslam.colour_filter import ColourFilter
 from naoslam.detector import LandmarkDetector, mask_centre_column, rotated_box_of_mask, shipped_calibration
 from naoslam.measurement import RangeCalibration

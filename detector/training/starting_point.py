@@ -4,20 +4,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-#: The pole-pretrained checkpoint shipped with the package (the source of naoslam's shipped ONNX models).
-SHIPPED_WEIGHTS = Path(__file__).resolve().parents[1] / "weights" / "poles-yolov8n-seg.pt"
-#: Its architecture.
+from detector.model_files import SHIPPED_WEIGHTS, run_checkpoint
+
+#: The shipped accurate model's architecture.
 SHIPPED_ARCHITECTURE = "yolov8n-seg"
-#: The robot model's checkpoint (the source of naoslam's ``shipped-robot``); train it on with ``--weights``.
-ROBOT_WEIGHTS = SHIPPED_WEIGHTS.with_name("poles-robot-seg.pt")
 #: ``--weights`` value that trains from the YAML instead.
 SCRATCH = "scratch"
-
-
-def run_checkpoint(path: str | Path) -> Path:
-    """A ``poles train`` run folder stands for its ``weights/best.pt``; any other path is returned as given."""
-    best = Path(path) / "weights" / "best.pt"
-    return best if Path(path).is_dir() and best.is_file() else Path(path)
 
 
 def starting_point(model: str | None, weights: str | None) -> tuple[str, Path | None]:
