@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import re
 import shlex
+import shutil
 
 import pytest
 
@@ -70,3 +71,34 @@ def test_the_readme_lists_exactly_the_runtime_names_a_robot_program_imports():
     text = (REPOSITORY / "README.md").read_text(encoding="utf-8")
     listed = re.search(r"`naoslam.__all__` lists them: (.+?)\.\n", text, re.S).group(1)
     assert sorted(re.findall(r"`(\w+)`", listed)) == sorted(naoslam.__all__)
+
+
+def _readme_walk_through() -> list[str]:
+    """The `poles` lines of the README's "Your own export, start to finish" block, in order."""
+    text = (REPOSITORY / "README.md").read_text(encoding="utf-8")
+    section = text.split("## Your own export, start to finish", 1)[1].split("```bash", 1)[1].split("```", 1)[0]
+    return [line for line in _code_block_command_lines(f"```\n{section}```") if line.startswith("poles ")]
+
+
+def test_the_readmes_walk_through_runs_as_written_on_a_rendered_export(synth_dataset, tmp_path, monkeypatch):
+    """Every command of the walk-through, in its order and with its paths, on a small rendered export; only the
+    amounts shrink (one epoch at 64 px, 13 calibration shots) so that it runs in a minute."""
+    from detector.cli import main
+
+    export = tmp_path / "poles-export"
+    shutil.copytree(synth_dataset, export)
+    frames = tmp_path / "new-frames"
+    shutil.copytree(synth_dataset / "valid" / "images", frames)
+    smaller = {"--time 1": "--epochs 1 --imgsz 64 --batch 8", "--images 195": "--images 13",
+               "--data data/split": "--data data/split --imgsz 480 640"}
+    monkeypatch.chdir(tmp_path)
+    lines = _readme_walk_through()
+    assert [line.split()[1] for line in lines] == ["check", "check", "split", "augment", "train", "export", "synth",
+                                                   "calibrate", "evaluate", "predict"]
+    for line in lines:
+        for written, small in smaller.items():
+            line = line.replace(written, small)
+        line = line.replace("~/poles-export", str(export)).replace("~/new-frames", str(frames))
+        assert main(shlex.split(line, comments=True)[1:]) == 0, line
+    assert (tmp_path / "models" / "poles-int8.onnx").is_file() and (tmp_path / "runs" / "eval").is_dir()
+    assert any((tmp_path / "prelabels").rglob("*.txt"))

@@ -171,11 +171,14 @@ def _best_f1(m: dict) -> str:
 
 
 def print_metrics(rows: list[dict]) -> None:
-    """Side-by-side table of several evaluations, like the thesis's table 4.2."""
+    """Side-by-side table of several evaluations, like the thesis's table 4.2, titled with the split it scored."""
     from detector.console import make_console
     from rich.table import Table
 
-    table = Table(title="held-out frames: TP = same class and mask IoU >= 0.5")
+    split = rows[0]["split"] if rows else "test"
+    title = ("held-out frames" if split != "train" else "TRAINING frames (not held out: a model scores higher on "
+             "frames it learnt)") + f" of the {split} split: TP = same class and mask IoU >= 0.5"
+    table = Table(title=title)
     table.add_column("")
     for m in rows:
         table.add_column(m["model"], justify="right")
