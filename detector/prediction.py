@@ -23,7 +23,8 @@ from detector.datasets.polygons import mask_to_polygon
 from detector.preview import CLASS_BGR, contact_sheet, draw_label
 from naoslam.detector import Detection, LandmarkDetector
 from naoslam.landmarks import CLASSES
-from naoslam.measurement import MeasurementModel
+from naoslam.front_end import FrontEnd
+from naoslam.measurement import Measurement
 
 #: Outline simplification for pre-labels (px): few vertices to correct, still within a pixel of the mask.
 PRELABEL_EPSILON_PX = 1.0
@@ -165,8 +166,7 @@ def overlay_video(source: Path, out: Path, model: Path | None = None, conf: floa
     for output in (out, out.with_suffix(".png")):  # the video and its contact sheet
         check_output_file(output, force, (Path(source),))
     detector = LandmarkDetector(model, conf=conf, input_width=input_width)
-    calibration = detector.usable_calibration
-    measurer = MeasurementModel(calibration, detector.conf) if calibration else None
+    front_end = FrontEnd(detector, min_confidence=detector.conf) if detector.usable_calibration else None
     count, fps, frames = frames_in(source)
     every = max(1, count // SHEET_TILES)
     tiles, written, writer, size = [], 0, None, None
@@ -182,7 +182,8 @@ def overlay_video(source: Path, out: Path, model: Path | None = None, conf: floa
                     raise OSError(f"{out}: OpenCV cannot write MP4 here")
             if frame.shape[1::-1] != size:  # a folder of frames of mixed sizes: the video keeps the first's
                 frame = cv2.resize(frame, size)
-            drawn = draw_detections(frame, detector(frame), measurer)
+            found, measured = front_end.detect_and_measure(frame) if front_end else (detector(frame), [])
+            drawn = draw_detections(frame, found, measured)
             writer.write(drawn)
             written += 1
             if index % every == 0 and len(tiles) < SHEET_TILES:
@@ -195,11 +196,13 @@ def overlay_video(source: Path, out: Path, model: Path | None = None, conf: floa
         tmp.unlink(missing_ok=True)
     sheet = contact_sheet(tiles, out.with_suffix(".png"), columns=SHEET_COLUMNS, tile_width=SHEET_TILE_WIDTH)
     return {"frames": written, "fps": fps, "video": str(out), "sheet": str(sheet), "conf": detector.conf,
-            "ranges": measurer is not None}
+            "ranges": front_end is not None}
 
 
-def draw_detections(frame: np.ndarray, detections: list[Detection], measurer: MeasurementModel | None) -> np.ndarray:
-    """The frame with each mask tinted in its class colour and labelled: class, confidence, range and bearing."""
+def draw_detections(frame: np.ndarray, detections: list[Detection], measurements: list[Measurement]) -> np.ndarray:
+    """The frame with each mask tinted in its class colour and labelled: class, confidence, and the range and bearing
+    of the measurement made of it, if any."""
+    measured = {id(m.detection): m for m in measurements}
     out = frame.copy()
     h, w = out.shape[:2]
     scale = max(0.4, w / 1600)
@@ -209,7 +212,7 @@ def draw_detections(frame: np.ndarray, detections: list[Detection], measurer: Me
         out[mask] = (0.55 * out[mask] + 0.45 * colour).astype(np.uint8)
         x0, y0 = int(d.box[0]), int(d.box[1])
         text = f"{d.name} {d.confidence:.2f}"
-        for m in measurer.measure([d], w) if measurer else []:
+        if (m := measured.get(id(d))) is not None:
             text += f" {m.range_m:.2f} m {np.degrees(m.bearing_rad):+.1f} deg"
         draw_label(out, text, (x0, max(y0 - 5, 12)), colour.tolist(), scale, max(1, round(2 * scale)))
     return out

@@ -50,15 +50,21 @@ class FrontEnd:
     def __call__(self, frame: np.ndarray, camera_pose: CameraPose | None = None) -> list[Measurement]:
         """Measurements of the poles in one BGR frame; with the camera's pose (height, pitch, roll), the ground-plane
         gate, the horizon band and the foot-row range are used (model front ends only)."""
-        if self.detector is None:
-            return self._colour_measurements(frame)
-        view = self.detector.ground_view(frame.shape[:2], camera_pose) if camera_pose is not None else None
-        return self.measurement_model.measure(self.detector(frame, camera_pose, view=view), frame.shape[1],
-                                              view=view)
+        return self.detect_and_measure(frame, camera_pose)[1]
 
-    def _colour_measurements(self, frame: np.ndarray) -> list[Measurement]:
+    def detect_and_measure(self, frame: np.ndarray, camera_pose: CameraPose | None = None) -> tuple[list, list]:
+        """The frame's detections (those the gate kept) and the measurements made of them, for a caller that also
+        shows what was found (an overlay)."""
+        if self.detector is None:
+            found = self._colour_filter(frame)
+            return found, self._colour_measurements(frame, found)
+        view = self.detector.ground_view(frame.shape[:2], camera_pose) if camera_pose is not None else None
+        found = self.detector(frame, camera_pose, view=view)
+        return found, self.measurement_model.measure(found, frame.shape[1], view=view)
+
+    def _colour_measurements(self, frame: np.ndarray, found: list) -> list[Measurement]:
         width, out = frame.shape[1], []
-        for d in self._colour_filter(frame):
+        for d in found:
             range_m, range_std = self.calibration.colour_range(d.band_distance_px, width, column=d.centre_column)
             out.append(Measurement(range_m, bearing_of_column(d.centre_column, width, self.calibration.hfov_deg),
                                    d.name, 1.0, range_std, self.calibration.bearing_std_rad, "colour filter", d))
