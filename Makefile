@@ -30,7 +30,7 @@ bench: $(STAMP)
 clean:
 	rm -rf runs .pytest_cache
 
-# The shipped pole model's recipe (README, "The shipped pole model"). BACKGROUNDS: real frames without poles.
+# The shipped accurate model's recipe (docs/model-card.md). BACKGROUNDS: real frames without poles.
 # Stages 1, 2, 5 and 14 trained 23, 24, 18 and 18 minutes on one H100, stages 16, 17 and 19 about 6 minutes each on
 # one H100 or H200 (DEVICE=0; on a two-core CPU they would take days); stages 3 and 4 trained 1.7 hours each on a
 # two-core CPU.

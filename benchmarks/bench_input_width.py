@@ -2,8 +2,8 @@
 ms per 640x480 frame against the model's own 640 px input in the same run, FP32 and INT8, whole frame and the band
 below the horizon, one onnxruntime thread (a vision thread on one core).
 
-What each width costs in poles found is measured with ``poles evaluate --imgsz W`` (README, "Engines and the
-on-robot budget"); this benchmark measures only time, and counts the detections on the same frames as a check.
+What each width costs in poles found is measured with ``poles evaluate --imgsz W`` (docs/camera-pose.md, "Engines
+and the on-robot budget"); this benchmark measures only time, and counts the detections on the same frames as a check.
 Frames: a rendered walk (camera pose known, so the band is the one the robot would crop).
 Usage: python benchmarks/bench_input_width.py [FRAMES] [REPEATS]
 """

@@ -129,7 +129,7 @@ def _odometry_rows(odometry_csv: Path) -> tuple[list[list[float]], list[CameraPo
     poses: list[CameraPose | None] = []
     if not odometry_csv.is_file():
         raise ValueError(f"{odometry_csv}: no such odometry file - pass the robot's odometry as a CSV with the "
-                         "header t,x,y,theta (README, 'The naoslam runtime')")
+                         "header t,x,y,theta (docs/runtime.md)")
     for line, row in csv_rows(odometry_csv, ODOMETRY_COLUMNS):
         named = [name for name in POSE_COLUMNS if name in row]
         if 0 < len(named) < len(POSE_COLUMNS):

@@ -2,7 +2,7 @@
 
 A model fine-tuned from another shares its basin, and the straight line between the two often beats both: a "model
 soup" (Wortsman et al. 2022), which WiSE-FT found also keeps more of the first model's robustness to frames unlike the
-fine-tuning data. The shipped pole model is such a blend (README, "The shipped pole model"); a team can blend the
+fine-tuning data. The shipped pole model is such a blend (docs/model-card.md); a team can blend the
 shipped checkpoint with its own fine-tune the same way. No training, no data: every floating-point tensor of the two
 models (batch-norm running statistics included) is interpolated; the result carries the second checkpoint's
 metadata, with the blend recorded in its training arguments.

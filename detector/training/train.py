@@ -65,7 +65,7 @@ class TrainSettings:
     time_hours: float | None = None
     #: Ultralytics' device string: "cpu" (default), "0", "0,1" (DDP across GPUs) or "mps".
     device: str = defaults.DEVICE
-    #: Let ``ThreadTuner`` pick the thread count by timing batches (``--threads auto``); off by default (see README).
+    #: Let ``ThreadTuner`` pick the thread count by timing batches (``--threads auto``); off by default (docs/training.md).
     adaptive_threads: bool = False
     #: Further Ultralytics training arguments (``--set lr0=0.0002``), already typed; see ``parse_hyperparameters``.
     hyperparameters: dict = field(default_factory=dict)
