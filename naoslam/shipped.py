@@ -3,7 +3,7 @@ confidence threshold it runs at (``operating_conf``).
 
 - the accurate model (``shipped``, and its INT8 copy ``shipped-int8``): YOLOv8n-seg at 640 px, for offline analysis,
   pre-labelling and machines with a vector unit;
-- the robot model (``shipped-robot``): a network a twentieth of its size at 320 px, for the Nao's Atom at camera rate.
+- the robot model (``shipped-robot``): a network with a thirteenth of its parameters at 320 px, for the Nao's Atom.
 
 ``LandmarkDetector()`` runs the accurate one, ``LandmarkDetector(profile="robot")`` the robot one.
 """
