@@ -7,6 +7,7 @@ their partial output. Anything unexpected exits 1 with a one-line summary and th
 """
 from __future__ import annotations
 
+import errno
 import signal
 import sys
 import tempfile
@@ -42,6 +43,34 @@ def _sigterm_raises():
         signal.signal(signal.SIGTERM, previous)
 
 
+#: What to do about the operating system's refusals, by errno.
+_OS_FIXES = {
+    errno.ENOSPC: "the disk is full - free some space or write --out to another disk; nothing was left behind",
+    errno.EDQUOT: "the disk quota is full - free some space or write --out elsewhere; nothing was left behind",
+    errno.EACCES: "permission denied - choose an --out in a folder you may write to",
+    errno.EPERM: "permission denied - choose an --out in a folder you may write to",
+    errno.EROFS: "the disk is read-only - choose an --out on a writable disk",
+    errno.ENOTDIR: "a file stands where a folder is needed - choose an --out inside a folder",
+    errno.EEXIST: "a file stands where a folder is needed - choose another --out",
+}
+
+
+def os_error_message(error: OSError) -> str:
+    """One line for an operating-system error: the user's path (not the hidden temporary folder an atomic write
+    used) and what to do; errors raised with a message of this project's own are kept as they are."""
+    if error.errno not in _OS_FIXES or error.filename is None:
+        return str(error)
+    return f"{_user_path(Path(error.filename))}: {_OS_FIXES[error.errno]}"
+
+
+def _user_path(path: Path) -> Path:
+    """The output an atomic writer's temporary ``.<name>.partial-XXXX`` folder stands for, else ``path``."""
+    for part in (path, *path.parents):
+        if part.name.startswith(".") and ".partial-" in part.name:
+            return part.parent / part.name[1:].split(".partial-")[0]
+    return path
+
+
 def run_command(name: str, command: Callable[[], int], debug: bool = False) -> int:
     """Run ``command`` and turn whatever it raises into a message and an exit status."""
     prefix = f"poles {name}:"
@@ -57,7 +86,7 @@ def run_command(name: str, command: Callable[[], int], debug: bool = False) -> i
     except (DatasetError, ValueError, OSError) as exc:
         if debug:
             raise
-        print(f"{prefix} {exc}", file=sys.stderr)
+        print(f"{prefix} {os_error_message(exc) if isinstance(exc, OSError) else exc}", file=sys.stderr)
         return BAD_INPUT
     except Exception as exc:
         if debug:

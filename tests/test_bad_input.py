@@ -6,8 +6,10 @@ class names, COCO without sizes or with flat polygons, a foreign annotations.jso
 """
 from __future__ import annotations
 
+import errno
 import hashlib
 import json
+import os
 import shutil
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -260,12 +262,13 @@ def _annotations_with_range(value: float) -> Callable:
 def _detection_checkpoint(tmp: Path) -> Path:
     """An untrained YOLOv8n *detection* checkpoint, as Ultralytics saves one: boxes, no masks."""
     import torch
-    from ultralytics.nn.tasks import DetectionModel
+    from ultralytics.nn.tasks import DetectionModel, yaml_model_load
 
     path = tmp / "inputs" / "detect.pt"
     path.parent.mkdir(exist_ok=True)
-    torch.save({"model": DetectionModel("yolov8n.yaml", nc=6, verbose=False).half(), "train_args": {"task": "detect"},
-                "epoch": -1}, path)
+    config = {**yaml_model_load("yolov8n.yaml"), "nc": 6}  # nc in the config: Ultralytics logs no override
+    torch.save({"model": DetectionModel(config, verbose=False).half(), "train_args": {"task": "detect"}, "epoch": -1},
+               path)
     return path
 
 
@@ -482,6 +485,9 @@ OTHER_CASES = [
     _plain("predict: the contact sheet's name is taken", lambda tmp, d: _sheet_name_taken(tmp)),
     _plain("slam: --confusion-rate above 1", lambda tmp, d: (["slam", "--sim", "square", "--confusion-rate", "2",
                                                               "--out", str(tmp / "out")], tmp, "--confusion-rate")),
+    _plain("convert: --out under a file", lambda tmp, d: (
+        ["convert", str(d), "--out", str(_garbage(tmp, "notes.txt") / "copy")], tmp / "inputs",
+        "notes.txt is a file, so nothing can be written under it")),
     _plain("slam: negative --lookalikes", lambda tmp, d: (["slam", "--sim", "square", "--lookalikes", "-1",
                                                            "--out", str(tmp / "out")], tmp, "--lookalikes")),
 ]
@@ -596,3 +602,16 @@ def test_a_threshold_or_process_count_out_of_range_is_refused_before_anything_ru
     error = capsys.readouterr().err
     assert "between 0 and 1" in error or "or more" in error or "whole number" in error, error
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("code, fix", [(errno.ENOSPC, "the disk is full"), (errno.EACCES, "permission denied"),
+                                       (errno.ENOTDIR, "a file stands where a folder is needed")])
+def test_an_operating_system_refusal_names_the_users_path_and_the_fix(code, fix):
+    """An atomic writer's temporary folder is hidden from the user: the message names the output it stands for."""
+    from detector.errors import os_error_message
+
+    error = OSError(code, os.strerror(code), "/robot/runs/.data.partial-x1y2/train/images/a.jpg")
+    assert os_error_message(error).startswith(f"/robot/runs/data: {fix}")
+    assert os_error_message(OSError(code, os.strerror(code), "/robot/runs/plain.json")).startswith(
+        f"/robot/runs/plain.json: {fix}")
+    assert os_error_message(FileNotFoundError("model.onnx: no such model file")) == "model.onnx: no such model file"

@@ -229,6 +229,7 @@ def check_output_folder(out: str | Path, force: bool, protect: tuple[Path, ...])
     out = Path(out).resolve()
     if out.exists() and not out.is_dir():
         raise FileExistsError(f"--out {out} is a file: give a folder for the dataset")
+    _refuse_under_a_file(out)
     _refuse_overlap(out, protect)
     if out.exists() and any(out.iterdir()) and not force:
         raise FileExistsError(f"{out} exists and is not empty: choose another --out or pass --force to replace it")
@@ -241,10 +242,19 @@ def check_output_file(out: str | Path, force: bool, protect: tuple[Path, ...]) -
     out = Path(out).resolve()
     if out.is_dir():
         raise IsADirectoryError(f"{out} is a folder: give a file name")
+    _refuse_under_a_file(out)
     _refuse_overlap(out, protect)
     if out.exists() and not force:
         raise FileExistsError(f"{out} exists - pick another name or add --force to replace it")
     return out
+
+
+def _refuse_under_a_file(out: Path) -> None:
+    """Refuse an output whose nearest existing parent is a file: nothing can be made under it."""
+    parent = next((folder for folder in out.parents if folder.exists()), None)
+    if parent is not None and not parent.is_dir():
+        raise NotADirectoryError(f"--out {out}: {parent} is a file, so nothing can be written under it - choose a "
+                                 "path inside a folder")
 
 
 def _refuse_overlap(out: Path, protect: tuple[Path, ...]) -> None:
