@@ -6,8 +6,6 @@ colour filter and its band-spacing law. The frame's ground view is built once an
 """
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from naoslam.camera import CameraPose
@@ -29,7 +27,6 @@ class FrontEnd:
 
     def __init__(self, model="shipped", calibration: RangeCalibration | None = None,
                  min_confidence: float | None = None, input_width: int | None = None, threads: int | None = None):
-        self.name = model if isinstance(model, str) else str(getattr(model, "path", model))
         if model == COLOUR_FILTER:
             self.detector, self.calibration = None, _colour_calibration(calibration)
             self._colour_filter = ColourFilter()
@@ -37,8 +34,7 @@ class FrontEnd:
         from naoslam.detector import LandmarkDetector
 
         self.detector = model if isinstance(model, LandmarkDetector) else \
-            LandmarkDetector(Path(model) if not isinstance(model, str) else model, input_width=input_width,
-                             threads=threads)
+            LandmarkDetector(model, input_width=input_width, threads=threads)
         threshold = min_confidence if min_confidence is not None else self.detector.stored_conf or THESIS_CONF
         self.detector.conf = min(self.detector.conf, threshold)
         self.calibration = self.detector.check_calibration(calibration) if calibration else self.detector.calibration
