@@ -31,11 +31,11 @@ from detector.training.devices import check_device
 
 #: Ultralytics' segmentation models that can be built from their YAML without a download.
 ULTRALYTICS_MODELS = ("yolov8n-seg", "yolov8s-seg", "yolov8m-seg")
-#: This package's own architectures, small enough for the Nao's CPU (``architectures/<name>.yaml``).
-ROBOT_MODELS = ("robot-p4-seg", "robot-p5-seg")
+ARCHITECTURES_DIR = Path(__file__).resolve().parent / "architectures"
+#: This package's own architectures, small enough for the Nao's CPU: one YAML each in ``architectures/``.
+ROBOT_MODELS = tuple(sorted(path.stem for path in ARCHITECTURES_DIR.glob("*.yaml")))
 #: Every architecture ``poles train --model`` builds.
 MODELS = ULTRALYTICS_MODELS + ROBOT_MODELS
-ARCHITECTURES_DIR = Path(__file__).resolve().parent / "architectures"
 
 
 def architecture_yaml(model: str) -> str:
