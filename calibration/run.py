@@ -42,6 +42,11 @@ def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv:
     walks = [open_ranged(folder) for folder in noise_data]  # every input checked before any is measured
     detector = LandmarkDetector(model, conf=MEASURE_CONF, input_width=input_width) if model else None
     samples = measure_samples(ranged, detector)
+    ranges = sorted({round(sample.range_m, 3) for sample in samples})
+    if len(ranges) < 2:
+        source = truth_csv or Path(data) / "annotations.json"
+        raise ValueError(f"{source}: every pole measured stands at {ranges[0]:g} m - a range law needs poles at two "
+                         "or more distances: add shots from other distances; nothing was written")
     walk = [s for w in walks for s in measure_samples(w, detector)] if walks else None
     calibration, report = calibrate(samples, walk_samples=walk)
     calibration = replace(calibration, input_width=detector.input_hw[1] if detector else None)

@@ -23,12 +23,11 @@ from naoslam.ground import GroundView
 from naoslam.landmarks import CLASSES
 from naoslam.measurement import RangeCalibration
 from naoslam.model_info import ModelInfo
-from naoslam.shipped import OPERATING_CONF_KEY, model_argument, profile_model, resolve_model, shipped_model
+from naoslam.shipped import (DEFAULT_CONF, OPERATING_CONF_KEY, model_argument, profile_model, resolve_model,
+                             shipped_model)
 
 #: Ultralytics' letterbox fill value.
 PAD_VALUE = 114
-#: Confidence threshold for a model that stores none (Ultralytics' predict default).
-DEFAULT_CONF = 0.25
 
 
 def valid_confidence(conf: float) -> float:

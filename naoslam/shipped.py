@@ -19,6 +19,8 @@ SHIPPED_NAME = "poles-yolov8n-seg"
 ROBOT_NAME = "poles-robot-seg"
 #: Metadata key of the confidence threshold a model is meant to run at.
 OPERATING_CONF_KEY = "operating_conf"
+#: The threshold of a model that stores none (Ultralytics' predict default), in every command and on the robot.
+DEFAULT_CONF = 0.25
 #: Names that stand for the shipped models wherever a model path is asked for, and their files.
 SHIPPED_FILES = {"shipped": f"{SHIPPED_NAME}.onnx", "shipped-int8": f"{SHIPPED_NAME}-int8.onnx",
                  "shipped-robot": f"{ROBOT_NAME}.onnx"}

@@ -284,6 +284,13 @@ def _calibration_with_law(tmp: Path, a: float) -> Path:
     return path
 
 
+def _empty_file(tmp: Path, name: str) -> Path:
+    path = tmp / "inputs" / name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(b"")
+    return path
+
+
 def _garbage(tmp: Path, name: str) -> Path:
     path = tmp / "inputs" / name
     path.parent.mkdir(exist_ok=True)
@@ -424,6 +431,10 @@ OTHER_CASES = [
                                                              "--resume"], d, "nothing to resume")),
     _plain("evaluate: garbage .onnx", lambda tmp, d: (["evaluate", "--model", str(_garbage(tmp, "m.onnx")), "--data",
                                                        str(d), "--out", str(tmp / "out")], tmp / "inputs", "m.onnx")),
+    _plain("evaluate: garbage .pt", lambda tmp, d: (["evaluate", "--model", str(_garbage(tmp, "best.pt")), "--data",
+                                                     str(d), "--out", str(tmp / "out")], tmp / "inputs", "best.pt")),
+    _plain("evaluate: empty .pt", lambda tmp, d: (["evaluate", "--model", str(_empty_file(tmp, "last.pt")), "--data",
+                                                   str(d), "--out", str(tmp / "out")], tmp / "inputs", "last.pt")),
     _plain("evaluate: a detection checkpoint", lambda tmp, d: (
         ["evaluate", str(d), "--model", str(_detection_checkpoint(tmp)), "--out", str(tmp / "out")], tmp / "inputs",
         "detect.pt: a detect model, not a segmentation model")),
@@ -457,6 +468,8 @@ OTHER_CASES = [
     _plain("calibrate: annotations.json with a NaN range", _annotations_with_range(float("nan"))),
     _plain("calibrate: annotations.json with a negative range", _annotations_with_range(-2.0)),
     _plain("calibrate: range 0", _calibrate_truth("{image},{cls},0", "ranges.csv:2")),
+    _plain("calibrate: every pole at one range", _calibrate_truth("{image},{cls},2.0",
+                                                                  "ranges.csv: every pole measured stands at 2 m")),
     _plain("calibrate: range not a number", _calibrate_truth("{image},{cls},far", "ranges.csv:2")),
     _plain("calibrate: unknown class", _calibrate_truth("{image},ball,1.0", "ranges.csv:2")),
     _plain("calibrate: a row without its range", _calibrate_truth("{image}", "ranges.csv:2: no value for class, "
@@ -615,3 +628,29 @@ def test_an_operating_system_refusal_names_the_users_path_and_the_fix(code, fix)
     assert os_error_message(OSError(code, os.strerror(code), "/robot/runs/plain.json")).startswith(
         f"/robot/runs/plain.json: {fix}")
     assert os_error_message(FileNotFoundError("model.onnx: no such model file")) == "model.onnx: no such model file"
+
+
+@pytest.mark.parametrize("command", ["synth", "convert"])
+def test_force_replaces_an_earlier_output_but_never_a_folder_of_the_users_own(command, dataset_copy, tmp_path, capsys):
+    """``--out X --force`` onto a dataset of the user's (no marker): refused, X unchanged; onto the command's own
+    earlier output: replaced."""
+    argv = {"synth": ["synth", "--images", "2", "--workers", "1"], "convert": ["convert", str(dataset_copy)]}[command]
+    users = Path(shutil.copytree(dataset_copy, tmp_path / "mydocs"))
+    before = tree_hash(users)
+    assert main(argv + ["--out", str(users), "--force"]) == 2
+    err = capsys.readouterr().err
+    assert str(users) in err and "did not write" in err and "Traceback" not in err
+    assert tree_hash(users) == before
+    earlier = tmp_path / "earlier"
+    assert main(argv + ["--out", str(earlier)]) == 0
+    assert main(argv + ["--out", str(earlier), "--force"]) == 0
+
+
+def test_an_export_one_folder_down_is_pointed_at(dataset_copy, tmp_path, capsys):
+    """An unzipped export often sits one folder below the folder given: the refusal names the one that holds it."""
+    parent = tmp_path / "download"
+    parent.mkdir()
+    shutil.move(str(dataset_copy), parent / "poles-v3")
+    assert main(["check", str(parent)]) == 1
+    out = capsys.readouterr().out
+    assert "one folder down" in out and str(parent / "poles-v3") in out

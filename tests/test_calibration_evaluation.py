@@ -15,7 +15,6 @@ from calibration.fit import WALK_RELATIVE_STD, calibrate, fit_power_law
 from detector.model_files import load_calibration
 from calibration.samples import measure_samples, open_ranged
 from detector.cli import main
-from detector.cli.evaluation_commands import FALLBACK_CONF
 from detector.datasets import load_dataset
 from detector.datasets.truth import load_truth
 from detector.evaluation.by_width import label_width_px, recall_by_width, width_bin_names
@@ -30,6 +29,7 @@ from naoslam.camera import PinholeCamera
 from naoslam.colour_filter import ColourFilter
 from naoslam.detector import LandmarkDetector
 from naoslam.landmarks import CLASSES, PoleGeometry
+from naoslam.shipped import DEFAULT_CONF
 from naoslam.measurement import MeasurementModel, PowerLaw, RangeCalibration, on_axis_size
 
 
@@ -518,7 +518,7 @@ def test_evaluate_prints_each_models_own_threshold(synth_dataset, tiny_onnx, tmp
                  "--out", str(tmp_path / "eval")]) == 0
     printed = capsys.readouterr().out.splitlines()
     row = next(line for line in printed if "threshold (the counts')" in line)
-    assert re.findall(r"\d\.\d\d", row) == [f"{FALLBACK_CONF:.2f}", f"{LandmarkDetector().stored_conf:.2f}"]
+    assert re.findall(r"\d\.\d\d", row) == [f"{DEFAULT_CONF:.2f}", f"{LandmarkDetector().stored_conf:.2f}"]
     # The second column against the first, on the same frames, with its spread over them.
     f1 = [json.loads((tmp_path / "eval" / name / "metrics.json").read_text())["f1"]
           for name in (tiny_onnx.name, "poles-yolov8n-seg.onnx")]

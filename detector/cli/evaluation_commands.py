@@ -6,10 +6,8 @@ import argparse
 from pathlib import Path
 
 from detector.cli.arguments import add_dataset_argument, add_input_width_argument, confidence, existing
+from naoslam.shipped import DEFAULT_CONF
 
-
-#: ``poles evaluate``'s threshold for a model that stores none.
-FALLBACK_CONF = 0.5
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
@@ -22,7 +20,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     add_dataset_argument(evaluate, "held-out frames with labels (dataset folder or COCO export)")
     evaluate.add_argument("--split", default="test", help="split to evaluate (default test)")
     evaluate.add_argument("--conf", type=confidence,
-                          help="confidence threshold for the counts (default: the model's own, else 0.5)")
+                          help="confidence threshold for the counts (default: the model's own, else %g, as predict, slam "
+                               "and the robot use it)" % DEFAULT_CONF)
     evaluate.add_argument("--calibration", type=Path, help="calibration.json for range errors "
                                                            "(default: the one embedded in the ONNX model; for the "
                                                            "colour filter, the shipped model's colour law)")
@@ -61,7 +60,7 @@ def _evaluate(args: argparse.Namespace) -> int:
     with output_folder(args.out, args.force, existing(args.data, args.calibration, *map(Path, models))) as folder:
         for predictor in predictors:
             out = folder / predictor.name if len(models) > 1 else folder
-            conf = args.conf if args.conf is not None else predictor.operating_conf or FALLBACK_CONF
+            conf = args.conf if args.conf is not None else predictor.operating_conf or DEFAULT_CONF
             rows.append(evaluate(predictor, args.data, out, args.split, conf))
     print_metrics(rows)
     print(f"wrote {args.out} (metrics.json, per_image.png, sweep.png, confusion.png, recall_by_width.png, errors/)")

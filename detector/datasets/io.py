@@ -93,8 +93,19 @@ def load_dataset(path: str | Path, renames: dict[str, str] | None = None) -> Dat
     if path.is_file() and path.suffix.lower() == ".zip":
         raise DatasetError([Problem("error", path, None, "a zip archive, not a dataset folder",
                                     f"unzip it first (unzip {path.name} -d {path.stem}) and give that folder")])
-    raise DatasetError([Problem("error", path, None, "neither data.yaml nor a COCO _annotations.coco.json found",
-                                "point to a Roboflow 'YOLOv8' or 'COCO' segmentation export folder")])
+    below = _datasets_one_folder_down(path) if path.is_dir() else []
+    fix = (f"give the folder that holds it: {' or '.join(map(str, below))}" if below else
+           "point to a Roboflow 'YOLOv8' or 'COCO' segmentation export folder")
+    raise DatasetError([Problem("error", path, None, "neither data.yaml nor a COCO _annotations.coco.json found"
+                                + (" here, but one folder down" if below else ""), fix)])
+
+
+def _datasets_one_folder_down(folder: Path) -> list[Path]:
+    """The subfolders of ``folder`` that hold a dataset (an unzipped export often sits one folder down)."""
+    from detector.datasets.coco import find_coco_files
+
+    return [sub for sub in sorted(folder.iterdir()) if sub.is_dir() and not sub.name.startswith(".")
+            and ((sub / "data.yaml").is_file() or find_coco_files(sub))]
 
 
 def _with_images_required(dataset: Dataset, source: Path, fix: str) -> Dataset:
@@ -223,17 +234,32 @@ def _duplicate_stems(samples: list[Sample]) -> list[Problem]:
     return problems
 
 
+#: The file every output folder holds: ``--force`` replaces a folder only when it holds one (an earlier output of
+#: this tool), never a folder of the user's own.
+OUTPUT_MARKER = ".poles-output"
+
+
 def check_output_folder(out: str | Path, force: bool, protect: tuple[Path, ...]) -> Path:
     """The resolved output folder, or an error: it is a file, overlaps an input folder (never allowed, even with
-    ``force``), or holds files and ``force`` is not set."""
+    ``force``), or holds files and ``force`` is not set or it is not an earlier output (no ``OUTPUT_MARKER``)."""
     out = Path(out).resolve()
     if out.exists() and not out.is_dir():
         raise FileExistsError(f"--out {out} is a file: give a folder for the dataset")
     _refuse_under_a_file(out)
     _refuse_overlap(out, protect)
-    if out.exists() and any(out.iterdir()) and not force:
-        raise FileExistsError(f"{out} exists and is not empty: choose another --out or pass --force to replace it")
+    if out.exists() and any(out.iterdir()):
+        if not force:
+            raise FileExistsError(f"{out} exists and is not empty: choose another --out or pass --force to replace it")
+        if not (out / OUTPUT_MARKER).is_file():
+            raise FileExistsError(f"{out} holds files that poles did not write (no {OUTPUT_MARKER} in it), so "
+                                  "--force does not replace it: choose another --out, or move that folder away "
+                                  "yourself")
     return out
+
+
+def _mark_output(folder: Path) -> None:
+    """Mark ``folder`` as an output of this tool, which a later ``--force`` may replace."""
+    (folder / OUTPUT_MARKER).write_text("written by poles; --force may replace this folder\n", encoding="utf-8")
 
 
 def check_output_file(out: str | Path, force: bool, protect: tuple[Path, ...]) -> Path:
@@ -271,6 +297,7 @@ def output_folder(out: str | Path, force: bool, protect: tuple[Path, ...]) -> It
     """A temporary folder for a command's output, moved to ``out`` when the block succeeds, so ``out`` holds one
     run's files and never half of one; ``out`` is checked first by ``check_output_folder``."""
     with atomic_folder(check_output_folder(out, force, protect)) as tmp:
+        _mark_output(tmp)
         yield tmp
 
 
@@ -289,6 +316,7 @@ class DatasetWriter:
     def __enter__(self) -> "DatasetWriter":
         self._folder = atomic_folder(self.out)
         self.tmp = self._folder.__enter__()
+        _mark_output(self.tmp)
         for split in SPLITS:
             (self.tmp / split / "images").mkdir(parents=True)
             (self.tmp / split / "labels").mkdir(parents=True)

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from detector.model_files import run_checkpoint
+from detector.model_files import read_checkpoint, run_checkpoint
 from naoslam.colour_filter import ColourFilter
 from naoslam.detector import LandmarkDetector, mask_centre_column, rotated_box_of_mask, shipped_calibration
 from naoslam.measurement import RangeCalibration
@@ -118,6 +118,7 @@ def make_predictor(model: str, imgsz: int | None = None, calibration: RangeCalib
                          "`colour-filter`")
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such checkpoint")
+    read_checkpoint(path)  # an empty or garbled file is refused in one line naming it, before Ultralytics sees it
     predictor = TorchPredictor(path, imgsz or 640)
     predictor.calibration = calibration
     return predictor
