@@ -1,16 +1,27 @@
-"""Fine-tuning benchmark: how good is a user's model after minutes of CPU training, from scratch against from the
-shipped pole model?
+"""Fine-tuning benchmarks.
 
-The "user" dataset is unlike the shipped model's training data: another seed, another camera (1280x960, the
+``real`` mode: the job ``poles finetune`` does, on real Nao frames, as group hold-outs on ``../shared/real-poles``:
+fine-tune on the 6 calibration shots and test on the 8 walk frames, then the other way round. Each group runs the
+whole ``poles finetune`` (its --minutes on every core), and the shipped model, the fine-tune and the chosen blend are
+compared on the held-out group, on fresh rendered sets (everything, far poles) and, where
+``../shared/real-backgrounds`` is present, on a set drawn over real frames half of it back-lit; one table.
+Usage: python benchmarks/bench_finetune.py real [--model accurate|robot] [--minutes 15] [--frames 200] [--rehearsal-share S] [--freeze N]
+       [--lr0 L] [--out FOLDER]
+
+``rendered`` mode (the default): how good is a user's model after minutes of CPU training, from scratch against from
+the shipped pole model? The "user" dataset is unlike the shipped model's training data: another seed, another camera (1280x960, the
 documented 60.97 deg field of view instead of 56.3), rendered rooms only (no real backdrops). Each start trains
 YOLOv8n-seg at 640 px, batch 8, for MINUTES[-1] minutes on every core; a snapshot of the weights at each mark in
 MINUTES is evaluated on the test split (mask mAP50, precision and recall at 0.5, counted as `poles evaluate` does).
-Usage: python benchmarks/bench_finetune.py [MINUTES ...]   (default 5 15)
+Usage: python benchmarks/bench_finetune.py [rendered] [MINUTES ...]   (default 5 15)
 """
 from __future__ import annotations
 
+import argparse
 import copy
+import json
 import os
+import shutil
 import sys
 import tempfile
 import time
@@ -68,5 +79,88 @@ def main(minutes: list[float]) -> None:
                       f"{m['precision']:.1%}, recall {m['recall']:.1%} (test split, conf 0.5)", flush=True)
 
 
+SHARED = Path(__file__).resolve().parents[1].parent / "shared"
+#: The two groups of ../shared/real-poles: the calibration shots and the walk frames, by file-name prefix.
+GROUPS = {"calibration shots": "calib_", "walk frames": "walk_"}
+
+
+def group_export(real: Path, train_prefix: str, test_prefix: str, out: Path) -> Path:
+    """A Roboflow-layout export of ``real``'s frames: those named ``train_prefix*`` in train, ``test_prefix*`` in test
+    (no valid split: ``poles finetune`` makes one, as for a team's export without one)."""
+    from detector.datasets.intake import open_dataset
+    from detector.datasets.io import DatasetWriter
+
+    dataset = open_dataset(real, progress=False)
+    with DatasetWriter(out, force=True, protect=dataset.input_folders()) as writer:
+        for sample in dataset.samples:
+            for split, prefix in (("train", train_prefix), ("test", test_prefix)):
+                if sample.image is not None and sample.image.name.startswith(prefix):
+                    writer.add(split, sample.image.name, sample.image, sample.instances)
+    return out
+
+
+def real_mode(argv: list[str]) -> None:
+    from detector.finetune.judge import REFERENCE, compare_models, render_set
+    from detector.finetune.pipeline import run_finetune, starting_weights
+    from detector.finetune.recipe import STARTING_MODELS, FinetuneRecipe
+    from detector.synth.backdrops import scan_backdrops
+
+    parser = argparse.ArgumentParser(prog="bench_finetune.py real")
+    defaults = FinetuneRecipe()
+    parser.add_argument("--model", choices=STARTING_MODELS, default=defaults.model)
+    parser.add_argument("--minutes", type=float, default=defaults.minutes)
+    parser.add_argument("--frames", type=int, default=200, help="frames per rendered set")
+    parser.add_argument("--rehearsal-share", type=float, default=defaults.rehearsal_share)
+    parser.add_argument("--freeze", type=int, default=defaults.freeze)
+    parser.add_argument("--lr0", type=float, default=defaults.lr0)
+    parser.add_argument("--warmup-epochs", type=float, default=defaults.warmup_epochs)
+    parser.add_argument("--out", type=Path, help="keep every run here (default: a temporary folder)")
+    args = parser.parse_args(argv)
+    real = SHARED / "real-poles"
+    if not (real / "data.yaml").is_file():
+        sys.exit(f"{real}: not here - the real mode needs ../shared/real-poles")
+    recipe = FinetuneRecipe(model=args.model, minutes=args.minutes, rehearsal_share=args.rehearsal_share, freeze=args.freeze,
+                            lr0=args.lr0, warmup_epochs=args.warmup_epochs, evaluation_frames=args.frames)
+    with tempfile.TemporaryDirectory() as tmp:
+        root = args.out or Path(tmp)
+        rows, timings = [], {}
+        for train_group, test_group in (tuple(GROUPS), tuple(reversed(GROUPS))):
+            name = f"{train_group} -> {test_group}"
+            folder = root / name.split()[0]
+            shutil.rmtree(folder, ignore_errors=True)
+            export = group_export(real, GROUPS[train_group], GROUPS[test_group], folder / "export")
+            results = run_finetune(export, folder / "run", recipe)
+            timings[name] = results["seconds"]
+            group_rows = results["evaluate"]["rows"]
+            backgrounds = SHARED / "real-backgrounds" / "images"
+            if backgrounds.is_dir():
+                models = {REFERENCE: starting_weights(recipe), "fine-tune": Path(results["train"]["weights"]),
+                          group_rows[-1]["model"]: Path(results["blend"]["weights"])}
+                backdrop_set = render_set(folder / "backdrops", args.frames, 0.0, 9103, scan_backdrops(backgrounds),
+                                          backlight_share=0.5)
+                group_rows += compare_models(models, {"over real frames, half back-lit": (backdrop_set, "test")},
+                                             folder / "backdrops-evaluation", results["evaluate"]["conf"],
+                                             recipe.training_size)
+            rows += [{"group": name, **row} for row in group_rows]
+        print(f"\nrecipe: {json.dumps(recipe.__dict__)}")
+        print(f"{'group':<34} {'set':<32} {'model':<10} {'TP':>4} {'FP':>4} {'FN':>4} {'prec':>7} {'recall':>7} "
+              f"{'F1':>6} {'F1 change (95 %)':>22} {'recall <16px':>13}")
+        for r in rows:
+            change = r.get("f1_change")
+            text = (f"{100 * change['difference']:+.1f} ({100 * change['low']:+.1f}..{100 * change['high']:+.1f})"
+                    if change else "-")
+            small = f"{100 * r['recall_under_16px']:.1f} %" if r["recall_under_16px"] is not None else "-"
+            print(f"{r['group']:<34} {r['set']:<32} {r['model']:<10} {r['tp']:>4} {r['fp']:>4} {r['fn']:>4} "
+                  f"{100 * r['precision']:>6.1f}% {100 * r['recall']:>6.1f}% {r['f1']:>6.3f} {text:>22} {small:>13}")
+        for name, seconds in timings.items():
+            print(f"{name}: " + ", ".join(f"{stage} {s:.0f} s" for stage, s in seconds.items())
+                  + f"; total {sum(seconds.values()) / 60:.1f} min")
+        (root / "bench_finetune_real.json").write_text(json.dumps({"recipe": recipe.__dict__, "rows": rows,
+                                                                   "seconds": timings}, indent=1))
+
+
 if __name__ == "__main__":
-    main([float(v) for v in sys.argv[1:]] or [5.0, 15.0])
+    if sys.argv[1:2] == ["real"]:
+        real_mode(sys.argv[2:])
+    else:
+        main([float(v) for v in sys.argv[1:] if v != "rendered"] or [5.0, 15.0])

@@ -2,7 +2,8 @@
 
 Bad input (a dataset problem, a file that is missing, exists or cannot be written, a bad value) exits 2 with the
 message, which names the file and the fix. Ctrl-C and SIGTERM exit 130 / 143 after the atomic writers have removed
-their partial output. Anything unexpected exits 1 with a one-line summary and the traceback saved to a log file;
+their partial output. A stage of a resumable run (``detector.stages``) that fails says which stage, why, and that
+the stages before it are kept. Anything unexpected exits 1 with a one-line summary and the traceback saved to a log file;
 ``--debug`` shows the traceback instead.
 """
 from __future__ import annotations
@@ -18,6 +19,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from detector.datasets.model import DatasetError
+from detector.stages import StageFailed
 
 #: Exit statuses.
 BAD_INPUT, UNEXPECTED, INTERRUPTED, TERMINATED = 2, 1, 130, 143
@@ -88,6 +90,11 @@ def run_command(name: str, command: Callable[[], int], debug: bool = False) -> i
             raise
         print(f"{prefix} {os_error_message(exc) if isinstance(exc, OSError) else exc}", file=sys.stderr)
         return BAD_INPUT
+    except StageFailed as exc:
+        if debug:
+            raise
+        print(f"{prefix} {exc}", file=sys.stderr)
+        return BAD_INPUT if isinstance(exc.__cause__, (DatasetError, ValueError, OSError)) else UNEXPECTED
     except Exception as exc:
         if debug:
             raise

@@ -7,7 +7,7 @@ import re
 import pytest
 
 from detector.demo.pipeline import Budget, run_demo
-from detector.demo.stages import StageFailed, StageLedger, stage_key
+from detector.stages import StageFailed, StageLedger, stage_key
 from naoslam.detector import LandmarkDetector
 
 TINY = Budget("tiny", images=24, copies=1, models=("yolov8n-seg",), imgsz=64, epochs=1, train_hours=None, batch=8,

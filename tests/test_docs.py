@@ -5,6 +5,7 @@ import argparse
 import re
 import shlex
 import shutil
+from pathlib import Path
 
 import pytest
 
@@ -73,32 +74,49 @@ def test_the_readme_lists_exactly_the_runtime_names_a_robot_program_imports():
     assert sorted(re.findall(r"`(\w+)`", listed)) == sorted(naoslam.__all__)
 
 
-def _readme_walk_through() -> list[str]:
-    """The `poles` lines of the README's "Your own export, start to finish" block, in order."""
+def _readme_walk_through(heading: str) -> list[str]:
+    """The `poles` lines of the README's first code block under ``heading``, in order."""
     text = (REPOSITORY / "README.md").read_text(encoding="utf-8")
-    section = text.split("## Your own export, start to finish", 1)[1].split("```bash", 1)[1].split("```", 1)[0]
+    section = text.split(f"## {heading}", 1)[1].split("```bash", 1)[1].split("```", 1)[0]
     return [line for line in _code_block_command_lines(f"```\n{section}```") if line.startswith("poles ")]
 
 
-def test_the_readmes_walk_through_runs_as_written_on_a_rendered_export(synth_dataset, tmp_path, monkeypatch):
-    """Every command of the walk-through, in its order and with its paths, on a small rendered export; only the
-    amounts shrink (one epoch at 64 px, 13 calibration shots) so that it runs in a minute."""
+def _run_as_written(lines: list[str], smaller: dict[str, str], export: Path, frames: Path) -> None:
+    """Run each README line with ``smaller`` amounts and the test's export and frames in place of the user's."""
     from detector.cli import main
 
-    export = tmp_path / "poles-export"
-    shutil.copytree(synth_dataset, export)
-    frames = tmp_path / "new-frames"
-    shutil.copytree(synth_dataset / "valid" / "images", frames)
-    smaller = {"--time 1": "--epochs 1 --imgsz 64 --batch 8", "--images 195": "--images 13",
-               "--data data/split": "--data data/split --imgsz 480 640"}
-    monkeypatch.chdir(tmp_path)
-    lines = _readme_walk_through()
-    assert [line.split()[1] for line in lines] == ["check", "check", "split", "augment", "train", "export", "synth",
-                                                   "calibrate", "evaluate", "predict"]
     for line in lines:
         for written, small in smaller.items():
             line = line.replace(written, small)
         line = line.replace("~/poles-export", str(export)).replace("~/new-frames", str(frames))
         assert main(shlex.split(line, comments=True)[1:]) == 0, line
-    assert (tmp_path / "models" / "poles-int8.onnx").is_file() and (tmp_path / "runs" / "eval").is_dir()
+
+
+def test_the_readmes_own_export_way_runs_as_written_on_a_rendered_export(synth_dataset, tmp_path, monkeypatch):
+    """`poles check`, `poles finetune` and `poles predict` as the README gives them, on a small rendered export;
+    only the amounts shrink (a few seconds of training at 64 px, 10-frame rendered sets)."""
+    export, frames = tmp_path / "poles-export", tmp_path / "new-frames"
+    shutil.copytree(synth_dataset, export)
+    shutil.copytree(synth_dataset / "valid" / "images", frames)
+    monkeypatch.chdir(tmp_path)
+    lines = _readme_walk_through("Your own export, start to finish")
+    assert [line.split()[1] for line in lines] == ["check", "finetune", "predict"]
+    _run_as_written(lines, {"--out runs/mine": "--out runs/mine --minutes 0.3 --imgsz 64 --copies 1 "
+                                               "--evaluation-frames 10"}, export, frames)
+    assert (tmp_path / "runs" / "mine" / "report.html").is_file()
     assert any((tmp_path / "prelabels").rglob("*.txt"))
+
+
+def test_the_readmes_stage_by_stage_way_runs_as_written_on_a_rendered_export(synth_dataset, tmp_path, monkeypatch):
+    """Every command of the stage-by-stage block, in its order and with its paths, on a small rendered export; only
+    the amounts shrink (one epoch at 64 px, 13 calibration shots) so that it runs in a minute."""
+    export = tmp_path / "poles-export"
+    shutil.copytree(synth_dataset, export)
+    smaller = {"--time 1": "--epochs 1 --imgsz 64 --batch 8", "--images 195": "--images 13",
+               "--data data/split": "--data data/split --imgsz 480 640"}
+    monkeypatch.chdir(tmp_path)
+    lines = _readme_walk_through("Stage by stage")
+    assert [line.split()[1] for line in lines] == ["check", "split", "augment", "train", "export", "synth",
+                                                   "calibrate", "evaluate"]
+    _run_as_written(lines, smaller, export, tmp_path)
+    assert (tmp_path / "models" / "poles-int8.onnx").is_file() and (tmp_path / "runs" / "eval").is_dir()

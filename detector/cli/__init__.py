@@ -2,20 +2,22 @@
 
 Each module adds its commands' parsers and says which function runs each (``set_defaults(run=...)``):
 ``dataset_commands`` (synth, check, convert, augment, split), ``training_commands`` (train, export, soup,
-calibrate), ``evaluation_commands`` (evaluate, predict), ``slam_command`` and ``demo_command``. ``arguments`` holds
+calibrate), ``finetune_command``, ``evaluation_commands`` (evaluate, predict), ``slam_command`` and ``demo_command``. ``arguments`` holds
 the argument types they share; ``detector.errors.run_command`` decides how every command ends.
 """
 from __future__ import annotations
 
 import argparse
 
-from detector.cli import dataset_commands, demo_command, evaluation_commands, slam_command, training_commands
+from detector.cli import (dataset_commands, demo_command, evaluation_commands, finetune_command, slam_command,
+                          training_commands)
 from detector.cli.arguments import one_dataset
 from detector.cli.version import PrintVersion
 from detector.errors import run_command
 
 #: The command modules, in the order ``poles --help`` lists their commands: the pipeline's order.
-COMMAND_MODULES = (dataset_commands, training_commands, evaluation_commands, slam_command, demo_command)
+COMMAND_MODULES = (dataset_commands, training_commands, finetune_command, evaluation_commands, slam_command,
+                   demo_command)
 
 
 def build_parser() -> argparse.ArgumentParser:

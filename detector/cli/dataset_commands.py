@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from augment.config import OPERATIONS, AugmentConfig
+from detector.atomic import write_json
 from detector.cli.arguments import add_dataset_argument, existing, finite_number, image_size, whole_number
 from detector.synth.scene import SceneConfig
 from naoslam.camera import NAO_HFOV_DEG
@@ -48,6 +49,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     synth.add_argument("--backlight-share", type=finite_number,
                        help="with --backgrounds, the share of backdrop frames whose poles stand back-lit, dark and "
                             f"hazed as in front of a window (default {SceneConfig.backlight_share})")
+    synth.add_argument("--paint-from", type=Path, metavar="EXPORT",
+                       help="paint every pole with the band colours measured on this annotated export's train and "
+                            "valid frames (your own poles, in your own light); written to paint.json beside the frames")
     synth.add_argument("--preview", action="store_true",
                        help="also write preview.png, a contact sheet with labels drawn")
     synth.add_argument("--workers", type=whole_number(0), default=None, help="render processes (default: every core)")
@@ -119,14 +123,34 @@ def _synth(args: argparse.Namespace) -> int:
                          f"leave out {flags}")
     if args.backlight_share is not None and args.backgrounds is None:
         raise ValueError("--backlight-share lights the poles drawn over real frames: give --backgrounds too")
-    config = SceneConfig(**options)
+    if args.paint_from is not None and (args.walk or args.calibration_shots or args.nominal_paint_share is not None):
+        raise ValueError("--paint-from paints the random scenes' poles: leave out --walk, --calibration-shots and "
+                         "--nominal-paint-share")
+    paint = _team_paint(args.paint_from) if args.paint_from is not None else None
+    config = SceneConfig(**options, team_paint=paint.scene_paint() if paint else ())
     backgrounds = scan_backdrops(args.backgrounds) if args.backgrounds is not None else ()
     job = SynthJob(images, args.seed, *args.size, hfov_deg=args.hfov, calibration_shots=args.calibration_shots,
                    backgrounds=backgrounds, backdrop_share=args.backdrop_share, walk=args.walk, config=config)
     out = generate_dataset(args.out, job, workers=args.workers, preview=args.preview, force=args.force,
-                           protect=existing(args.backgrounds))
+                           protect=existing(args.backgrounds, args.paint_from))
+    if paint is not None:
+        write_json(out / "paint.json", paint.as_json())
     print(f"wrote {images} images to {out}")
     return 0
+
+
+def _team_paint(export: Path):
+    """Measure and print the paint of ``export``'s poles (``team_paint.TeamPaint``)."""
+    from detector.synth.team_paint import measure_team_paint
+
+    paint = measure_team_paint(export)
+    hues = ", ".join(f"{letter} {paint.hue_degrees(letter):.0f} deg ({count} bands)"
+                     for letter, count in paint.measured.items() if count)
+    print(f"paint from {export}: {paint.poles} poles measured, {paint.skipped} too small; hue {hues}")
+    missing = [letter for letter, count in paint.measured.items() if not count]
+    if missing:
+        print(f"note: no pole of the export shows band colour {', '.join(missing)}: the nominal paint is used for it")
+    return paint
 
 
 def _check(args: argparse.Namespace) -> int:

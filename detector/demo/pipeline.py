@@ -13,7 +13,7 @@ from pathlib import Path
 from rich.table import Table
 
 from detector.console import make_console
-from detector.demo.stages import StageFailed, StageLedger, file_fingerprint, stage_key
+from detector.stages import StageFailed, StageLedger, file_fingerprint, stage_key
 from detector.model_files import SHIPPED_WEIGHTS
 from detector.training.starting_point import starting_point
 from naoslam.shipped import shipped_path

@@ -1,51 +1,12 @@
 """report.html: one self-contained page (images embedded) showing what every stage of the demo produced."""
 from __future__ import annotations
 
-import base64
 import html
 from pathlib import Path
 
-import cv2
-
-from detector.demo.stages import StageRecord
 from detector.atomic import write_text
-
-STYLE = """
-body { font-family: sans-serif; max-width: 1150px; margin: 1.5em auto; padding: 0 1em; color: #222; }
-h1 { font-size: 1.6em; } h2 { border-bottom: 2px solid #ccc; padding-bottom: .2em; margin-top: 1.6em; }
-table { border-collapse: collapse; margin: .6em 0; font-size: .92em; }
-th, td { border: 1px solid #ccc; padding: .25em .6em; text-align: right; }
-th:first-child, td:first-child { text-align: left; } th { background: #f2f2f2; }
-img { max-width: 100%; border: 1px solid #ddd; margin: .3em 0; }
-.row { display: flex; gap: .6em; flex-wrap: wrap; align-items: flex-start; } .row img { max-width: 49%; height: auto; }
-.note { color: #555; font-size: .92em; }
-"""
-
-
-def _img(path: str | Path, alt: str, max_width: int = 1400) -> str:
-    """An <img> with the picture inlined (downscaled JPEG for photos, PNG for plots)."""
-    path = Path(path)
-    if not path.is_file():
-        return f'<p class="note">({html.escape(alt)}: not produced)</p>'
-    image = cv2.imread(str(path))
-    if image.shape[1] > max_width:
-        image = cv2.resize(image, (max_width, round(image.shape[0] * max_width / image.shape[1])),
-                           interpolation=cv2.INTER_AREA)
-    kind = "png" if path.suffix == ".png" else "jpeg"
-    ok, data = cv2.imencode(f".{'png' if kind == 'png' else 'jpg'}", image)
-    return (f'<img alt="{html.escape(alt)}" title="{html.escape(alt)}" '
-            f'src="data:image/{kind};base64,{base64.b64encode(data.tobytes()).decode()}">')
-
-
-def _table(header: list[str], rows: list[list]) -> str:
-    head = "".join(f"<th>{html.escape(str(h))}</th>" for h in header)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in row) + "</tr>" for row in rows)
-    return f"<table><tr>{head}</tr>{body}</table>"
-
-
-def _pct(x: float) -> str:
-    return f"{100 * x:.1f} %"
-
+from detector.html_page import image, page, percent, table
+from detector.stages import StageRecord
 
 def _m(stats: dict | None, key: str = "mean", unit: str = "m", digits: int = 3) -> str:
     return f"{stats[key]:.{digits}f} {unit}" if stats else "-"
@@ -60,15 +21,13 @@ def write_report(out: Path, results: dict, timings: list[StageRecord]) -> Path:
              "calibration, evaluation as the thesis counted, and EKF SLAM on a walk rendered image by image.</p>",
              _stages(timings, budget), _data(results), _training(results), _export(results),
              _calibration(results["calibrate"]), _evaluation(results["evaluate"]), _slam(results["slam"])]
-    page = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>poles demo report</title>"
-            f"<style>{STYLE}</style></head><body>{''.join(parts)}</body></html>")
-    return write_text(Path(out) / "report.html", page)
+    return write_text(Path(out) / "report.html", page("poles demo report", parts))
 
 
 def _stages(timings: list[StageRecord], budget: dict) -> str:
     rows = [[r.name, r.status + ("" if r.ran else " (reused)"), f"{r.seconds:.0f}"] for r in timings]
     total = sum(r.seconds for r in timings)
-    return ("<h2>Stages and time taken</h2>" + _table(["stage", "status", "seconds"], rows)
+    return ("<h2>Stages and time taken</h2>" + table(["stage", "status", "seconds"], rows)
             + f"<p>Total {total / 60:.1f} min. Budget: {budget['images']} images, {budget['copies']} augmented "
             f"copies each, {', '.join(budget['models'])} at {budget['imgsz']} px"
             + (f" for {budget['train_hours'] * 60:.1f} min of training" if budget["train_hours"] else
@@ -80,13 +39,13 @@ def _stages(timings: list[StageRecord], budget: dict) -> str:
 def _data(results: dict) -> str:
     d, a = results["data"], results["augment"]
     return ("<h2>Dataset and augmentation</h2>"
-            + _table(["images", "train", "valid", "test", "poles", "frames without a pole"],
+            + table(["images", "train", "valid", "test", "poles", "frames without a pole"],
                      [[d["images"], d["train"], d["valid"], d["test"], d["poles"], d["empty"]]])
-            + _img(d["preview"], "dataset preview: labels drawn")
+            + image(d["preview"], "dataset preview: labels drawn")
             + f"<p>Augmentation: {a['train_images_in']} training images -> {a['train_images_out']} "
             f"({a['copies']} copies each); instances kept {a['instances_kept']}, dropped {a['instances_dropped']}. "
             "Operations used: " + ", ".join(f"{k} {v}" for k, v in sorted(a["operations"].items())) + ".</p>"
-            + _img(a.get("preview", ""), "augmentation preview: original and three copies per row"))
+            + image(a.get("preview", ""), "augmentation preview: original and three copies per row"))
 
 
 def _training(results: dict) -> str:
@@ -96,7 +55,7 @@ def _training(results: dict) -> str:
             continue
         out += (f"<p>{html.escape(t['model'])} at {t['imgsz']} px: best epoch {t['best_epoch']} of {t['epochs']} "
                 f"(chosen on the validation split): box mAP50 {t['mAP50(B)']:.3f}, mask mAP50 {t['mAP50(M)']:.3f}, "
-                f"mask mAP50-95 {t['mAP50-95(M)']:.3f}.</p>" + _img(t["curves"], "training curves"))
+                f"mask mAP50-95 {t['mAP50-95(M)']:.3f}.</p>" + image(t["curves"], "training curves"))
     return out
 
 
@@ -116,7 +75,7 @@ def _export(results: dict) -> str:
                              "; ".join(problems) or "agrees"])
         out += (f"<p>{html.escape(Path(r['onnx']).name)} ({r['input_hw'][1]}x{r['input_hw'][0]} input), checked on "
                 f"{r['verify_frames']} frames:</p>"
-                + _table(["comparison", "detections (ref / new)", "matched", "class changes", "box IoU min / mean",
+                + table(["comparison", "detections (ref / new)", "matched", "class changes", "box IoU min / mean",
                           "mask IoU min / mean", "max score diff", "verdict"], rows)
                 + "<p>Front end per frame: " + ", ".join(f"{k} {v:.1f} ms" for k, v in r["latency_ms"].items())
                 + f"; recommended: {r['recommended'].upper()}.</p>")
@@ -124,7 +83,7 @@ def _export(results: dict) -> str:
 
 
 def _calibration(c: dict) -> str:
-    laws = [[key, f"{c[key]['a']:.4g}", f"{c[key]['b']:.4f}", f"{c[key]['r2']:.4f}", _pct(c[key]["relative_std"])]
+    laws = [[key, f"{c[key]['a']:.4g}", f"{c[key]['b']:.4f}", f"{c[key]['r2']:.4f}", percent(c[key]["relative_std"])]
             for key in ("width", "height", "colour") if key in c]
     errors = [[r["range_m"], r["samples"], *(f"{r[m]:.1f} %" for m in ("width", "height", "rule", "fused"))]
               for r in c["errors_by_range"]]
@@ -132,16 +91,16 @@ def _calibration(c: dict) -> str:
             + f"<p>{c['samples']} poles of known range ({html.escape(c['source'])}); range = a * px^b, pixels at "
             f"{c['reference_width_px']} px image width (thesis at 640x480: width 70.057 px^-1.109, height 209.16 "
             "px^-0.965).</p>"
-            + _table(["law", "a", "b", "R^2", "relative std"], laws)
-            + _table(["true range (m)", "poles", "width", "height", "thesis rule", "fused"], errors)
-            + _img(c["plot"], "calibration fit"))
+            + table(["law", "a", "b", "R^2", "relative std"], laws)
+            + table(["true range (m)", "poles", "width", "height", "thesis rule", "fused"], errors)
+            + image(c["plot"], "calibration fit"))
 
 
 def _evaluation(evaluation: dict) -> str:
     rows = evaluation["rows"]
     header = ["front end", "images", "TP", "FP", "FN", "TN", "precision", "recall", "localisation", "mAP50",
               "range error (median)", "bearing error (median)"]
-    table = [[r["model"], r["images"], r["tp"], r["fp"], r["fn"], r["tn"], _pct(r["precision"]), _pct(r["recall"]),
+    cells = [[r["model"], r["images"], r["tp"], r["fp"], r["fn"], r["tn"], percent(r["precision"]), percent(r["recall"]),
               f"IoU {r['mean_iou']:.4f}" if r.get("mean_iou") is not None else _m(r.get("divide_pixel_error"),
                                                                                      unit="px", digits=2),
               f"{r['map50']:.3f}" if "map50" in r else "-", _m(r.get("range_error"), "median"),
@@ -151,16 +110,16 @@ def _evaluation(evaluation: dict) -> str:
            f"with no pole and no detection is a true negative. Confidence threshold {evaluation['conf']:.2f} "
            f"({html.escape(evaluation['conf_source'])}). Thesis on "
            "real frames: colour filter 97.4 % / 65.8 %, YOLOv8s 92.9 % / 98.3 % (IoU 0.8714), YOLOv8m 94.4 % / "
-           "99.2 % (IoU 0.8783).</p>" + _table(header, table) + _against_shipped(evaluation["against_shipped"]))
+           "99.2 % (IoU 0.8783).</p>" + table(header, cells) + _against_shipped(evaluation["against_shipped"]))
     for r in rows:
         folder = Path(r["folder"])
         examples = sorted((folder / "errors").glob("*.jpg"))[:2]
-        out += (f"<h3>{html.escape(r['model'])}</h3><div class='row'>" + _img(folder / "per_image.png", "per image")
-                + _img(folder / "sweep.png", "confidence sweep") + _img(folder / "confusion.png", "confusion matrix")
-                + _img(folder / "recall_by_width.png", "recall by pole width") + "</div>")
+        out += (f"<h3>{html.escape(r['model'])}</h3><div class='row'>" + image(folder / "per_image.png", "per image")
+                + image(folder / "sweep.png", "confidence sweep") + image(folder / "confusion.png", "confusion matrix")
+                + image(folder / "recall_by_width.png", "recall by pole width") + "</div>")
         if examples:
             out += ("<p class='note'>False positives (red) and misses (yellow), matched detections in blue:</p>"
-                    "<div class='row'>" + "".join(_img(e, e.name, 640) for e in examples) + "</div>")
+                    "<div class='row'>" + "".join(image(e, e.name, 640) for e in examples) + "</div>")
     return out
 
 
@@ -186,16 +145,16 @@ def _slam(s: dict) -> str:
         m = s[name]["metrics"]
         rows.append([name, s[name]["measurements"], _m(m.get("robot_error")), _m(m.get("landmark_error")),
                      _m(m.get("odometry_error")), f"{m['nees']['mean']:.1f}" if "nees" in m else "-"])
-    out += _table(["front end", "measurements", "robot error", "landmark error", "odometry alone", "NEES"], rows)
+    out += table(["front end", "measurements", "robot error", "landmark error", "odometry alone", "NEES"], rows)
     for name in ("model", "colour filter"):
-        out += f"<h3>through the {name}</h3><div class='row'>" + _img(s[name]["map"], "map") + \
-               _img(s[name]["errors"], "errors") + "</div>"
-    for title, table in s["tables"].items():
-        out += f"<h3>Back ends: {html.escape(title)}</h3>" + _table(
+        out += f"<h3>through the {name}</h3><div class='row'>" + image(s[name]["map"], "map") + \
+               image(s[name]["errors"], "errors") + "</div>"
+    for title, backends in s["tables"].items():
+        out += f"<h3>Back ends: {html.escape(title)}</h3>" + table(
             ["back end", "seeds", "landmark mean", "robot mean", "odometry alone", "NEES (median)"],
             [[r["backend"], r["seeds"], *(f"{r[k]:.4f}" if k in r else "-" for k in
                                           ("landmark_error", "robot_error", "odometry_error")),
-              f"{r['nees']:.1f}" if "nees" in r else "-"] for r in table])
+              f"{r['nees']:.1f}" if "nees" in r else "-"] for r in backends])
     out += ("<p class='note'>Thesis (Gutmann data, first 10 min): classic EKF landmark 0.299 m / robot 0.149 m; "
             "FEJ-EKF 0.166 / 0.107; minimal view n=3 0.137 / 0.097. Nao square walk: robot 0.174 m (FEJ n=5 + "
             "YOLOv8s), odometry alone 0.504 m.</p>")

@@ -132,7 +132,8 @@ def draw_frame(job: SynthJob, index: int) -> tuple[Scene, np.ndarray, list[PoleT
     and the same scene is rendered again, up to ``MAX_RENDERS`` renders; a pole still misread after that stays
     unlabelled. Only the misread poles change, so the frames written keep the sampler's camera poses, pole counts,
     backdrops and looks (back light included) instead of favouring the scenes that happen to read well. A walk's
-    poles are the same poles in every frame, so a walk is rendered once and a misread pole is left unlabelled.
+    poles are the same poles in every frame, so a walk is rendered once and a misread pole is left unlabelled. A team's
+    own paint (``SceneConfig.team_paint``) is what its poles look like, whatever colour it reads as: never repainted.
     """
     global _EFFECTS
     if _EFFECTS is None:
@@ -143,7 +144,8 @@ def draw_frame(job: SynthJob, index: int) -> tuple[Scene, np.ndarray, list[PoleT
         frame = _render(job, scene)
         image = apply_camera_effects(_EFFECTS, (frame.image * 255.0 + 0.5).astype(np.uint8), scene.effects_seed)
         labelled = [pole for pole in frame.poles if pole.mask.sum() >= MIN_LABEL_PIXELS and pole.nameable]
-        misread = {pole.cylinder for pole in labelled if misread_bands(image, pole.cls, pole.band_masks)}
+        misread = set() if job.config.team_paint else \
+            {pole.cylinder for pole in labelled if misread_bands(image, pole.cls, pole.band_masks)}
         if not misread or renders == max_renders:
             break
         rng = np.random.default_rng([job.seed, index, renders])
@@ -198,11 +200,12 @@ def _render_star(args: tuple[SynthJob, int]) -> RenderedSample:
 
 
 def generate_dataset(out: str | Path, job: SynthJob, *, workers: int | None = None, preview: bool = False,
-                     force: bool = False, progress: bool = True, protect: tuple[Path, ...] = ()) -> Path:
+                     force: bool = False, progress: bool = True, protect: tuple[Path, ...] = (),
+                     split: str | None = None) -> Path:
     """Render ``job.images`` frames into a Roboflow-layout dataset at ``out`` with ``annotations.json``.
 
     Calibration shots and a walk's frames all go to the ``test`` split; other frames are split 70/20/10
-    (train/test/valid). ``protect``: folders ``out`` may not overlap (the backgrounds folder: frames with poles
+    (train/test/valid), or all go to ``split`` when one is named (a set to evaluate on, a set to train on). ``protect``: folders ``out`` may not overlap (the backgrounds folder: frames with poles
     written into it would be read back as frames without).
     """
     walk_length = len(walk_frame_steps(job.walk, job.seed)) if job.walk else None
@@ -210,7 +213,7 @@ def generate_dataset(out: str | Path, job: SynthJob, *, workers: int | None = No
         raise ValueError(f"--images {job.images}: the {job.walk} walk takes {walk_length} frames - ask for that many "
                          "or fewer")
     kind = "calib" if job.calibration_shots else "walk" if job.walk else "synth"
-    splits = ["test"] * job.images if kind != "synth" else split_names(job.images, job.seed)
+    splits = [split or "test"] * job.images if kind != "synth" or split else split_names(job.images, job.seed)
     workers = workers or default_workers(job.images)
     annotations = {"classes": list(CLASSES), "generator": _describe(job), "fields": ANNOTATION_FIELDS, "images": {}}
     tiles = []
@@ -239,6 +242,7 @@ def _describe(job: SynthJob) -> dict:
             "backgrounds": len(job.backgrounds), "backdrop_share": job.backdrop_share,
             "nominal_paint_share": job.config.nominal_paint_share, "far_share": job.config.far_share,
             "backlight_share": job.config.backlight_share,
+            "team_paint": {letter: [round(c, 4) for c in rgb] for letter, rgb in job.config.team_paint} or None,
             "pole": {"diameter_m": pole.diameter, "band_height_m": pole.band_height, "base_height_m": pole.base_height}}
 
 

@@ -10,7 +10,7 @@ import numpy as np
 from detector.synth.backdrops import BACKLIGHT_SHARE, Look
 from detector.synth.background import Room, WallFeature
 from detector.synth.floor import FloorMap, pitch_range_deg
-from detector.synth.objects import (BAND_RGB, PINK, WHITE, YELLOW, Cylinder, Quad, horizontal_rotation, pole,
+from detector.synth.objects import (BAND_RGB, PINK, RGB, WHITE, YELLOW, Cylinder, Quad, horizontal_rotation, pole,
                                     tilt_rotation)
 from detector.synth.paint import PaintVariation
 from detector.synth.raycast import Lighting
@@ -39,6 +39,10 @@ class SceneConfig:
     #: Share of scenes whose poles keep the nominal paint (the rest vary it): fresh prints and the look a model
     #: already knows stay as common as worn, dull or off-hue ones.
     nominal_paint_share: float = 0.5
+    #: A team's own paint (band letter, RGB) measured by ``team_paint.measure_team_paint``: when given, the poles of
+    #: ``team_paint_share`` of the scenes wear it instead of the nominal or varied paint.
+    team_paint: tuple[tuple[str, RGB], ...] = ()
+    team_paint_share: float = 1.0
     #: Share of scenes whose poles all stand within ``far_range_m`` (6-18 px wide at 640x480): far poles seen more
     #: often in training. The draw is made only when the share is above 0, so the default frames stay the same.
     far_share: float = 0.0
@@ -49,6 +53,7 @@ class SceneConfig:
 
     def __post_init__(self) -> None:
         for option, share in (("--nominal-paint-share", self.nominal_paint_share), ("--far-share", self.far_share),
+                              ("the team paint share", self.team_paint_share),
                               ("--backlight-share", self.backlight_share)):
             if not 0.0 <= share <= 1.0:
                 raise ValueError(f"{option} {share} must lie between 0 and 1")
@@ -95,6 +100,7 @@ def sample_scene(rng: np.random.Generator, camera: PinholeCamera, config: SceneC
     occupied: list[tuple[float, float]] = []
     n_poles = 0 if rng.random() < config.p_no_pole else int(rng.integers(1, config.max_poles + 1))
     vary_paint = rng.random() >= config.nominal_paint_share
+    team_paint = bool(config.team_paint) and (config.team_paint_share >= 1.0 or rng.random() < config.team_paint_share)
     pole_range_m = config.far_range_m if config.far_share > 0 and rng.random() < config.far_share else config.range_m
     for _ in range(n_poles):
         spot = _free_spot(rng, pose, camera, config, occupied, floor, pole_range_m)
@@ -103,8 +109,8 @@ def sample_scene(rng: np.random.Generator, camera: PinholeCamera, config: SceneC
         lean = None
         if rng.random() < config.p_lean:
             lean = tilt_rotation(math.radians(rng.uniform(2, config.max_lean_deg)), rng.uniform(-math.pi, math.pi))
-        scene.cylinders.append(pole(str(rng.choice(CLASSES)), *spot, config.pole, lean,
-                                   paint=config.paint.draw(rng) if vary_paint else BAND_RGB))
+        paint = dict(config.team_paint) if team_paint else config.paint.draw(rng) if vary_paint else BAND_RGB
+        scene.cylinders.append(pole(str(rng.choice(CLASSES)), *spot, config.pole, lean, paint=paint))
     for _ in range(int(rng.integers(0, config.max_distractors + 1))):
         spot = _free_spot(rng, pose, camera, config, occupied, floor, config.range_m)
         if spot is not None:

@@ -1,0 +1,65 @@
+"""``poles finetune``: a team's own annotated export to a deployable model, with what it gained and lost."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from detector.cli.arguments import finite_number, positive_number, whole_number
+from detector.finetune.recipe import STARTING_MODELS, FinetuneRecipe
+
+DEFAULTS = FinetuneRecipe()
+
+
+def add_parsers(sub: argparse._SubParsersAction) -> None:
+    """Add the `finetune` command to ``sub`` (``run``: the function that runs it)."""
+    finetune = sub.add_parser("finetune", help="fine-tune the shipped model on your own annotated export, "
+                                               "blend, export, and report what changed (resumable)")
+    finetune.add_argument("export", type=Path, help="your annotated export: Roboflow YOLOv8 or COCO folder (only read)")
+    finetune.add_argument("--out", type=Path, required=True,
+                          help="run folder: models/poles-finetuned.onnx (+ -int8), report.html, metrics.json; "
+                               "give an earlier run's folder to resume it")
+    finetune.add_argument("--model", choices=STARTING_MODELS, default=DEFAULTS.model,
+                          help="the shipped model to start from: accurate (default; FP32 + INT8 out) or robot (the "
+                               "Nao-sized one at 320 px; FP32 out, dynamic input)")
+    finetune.add_argument("--minutes", type=positive_number, default=DEFAULTS.minutes,
+                          help=f"the whole job's time on this machine (default {DEFAULTS.minutes:g}); training "
+                               "gets what preparing and evaluating leave")
+    finetune.add_argument("--rename", action="append", metavar="OLD=NEW",
+                          help="read the export's class OLD as landmark NEW (e.g. pink-blue=pb); repeat for each")
+    finetune.add_argument("--rehearsal-share", type=finite_number, default=DEFAULTS.rehearsal_share,
+                          help="share of the training frames rendered in your paint: far poles, frames without "
+                               f"poles, look-alikes your export may not show (default {DEFAULTS.rehearsal_share:g}; "
+                               "0: your frames alone)")
+    finetune.add_argument("--freeze", type=whole_number(0), default=DEFAULTS.freeze,
+                          help="first layers kept as shipped (default: the starting model's backbone, 10 layers for "
+                               "the accurate model and 8 for the robot one; 0: none)")
+    finetune.add_argument("--lr0", type=positive_number, default=DEFAULTS.lr0,
+                          help=f"AdamW learning rate (default {DEFAULTS.lr0:g})")
+    finetune.add_argument("--copies", type=whole_number(0), default=DEFAULTS.copies,
+                          help=f"augmented copies of each of your training frames (default {DEFAULTS.copies}, "
+                               "the thesis's)")
+    finetune.add_argument("--imgsz", type=whole_number(32), default=DEFAULTS.imgsz,
+                          help="training image size (default: the starting model's, 640 or 320)")
+    finetune.add_argument("--evaluation-frames", type=whole_number(10), default=DEFAULTS.evaluation_frames,
+                          help="frames in each rendered set the models are judged on (default "
+                               f"{DEFAULTS.evaluation_frames})")
+    finetune.add_argument("--seed", type=whole_number(0), default=DEFAULTS.seed)
+    finetune.set_defaults(run=_finetune)
+
+
+def _finetune(args: argparse.Namespace) -> int:
+    from detector.datasets.names import parse_renames
+    from detector.finetune.pipeline import run_finetune
+    from detector.finetune.report import changes
+
+    recipe = FinetuneRecipe(model=args.model, minutes=args.minutes, copies=args.copies, rehearsal_share=args.rehearsal_share,
+                            freeze=args.freeze, lr0=args.lr0, imgsz=args.imgsz, seed=args.seed,
+                            evaluation_frames=args.evaluation_frames)
+    results = run_finetune(args.export, args.out, recipe, parse_renames(args.rename))
+    for line in changes(results["evaluate"]):
+        print(line)
+    model = results["export model"]
+    int8 = f" (INT8: {model['int8']})" if model["int8"] else ""
+    print(f"blend share {results['blend']['chosen']:g} chosen on your valid split; model: {model['fp32']}{int8}; "
+          f"report: {results['report']}")
+    return 0

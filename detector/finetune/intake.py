@@ -1,0 +1,40 @@
+"""The team's export as ``poles finetune`` trains on it: checked as every command checks a dataset, copied into the
+run in this project's class order, and given a valid split when it has none (the blend share is chosen on it).
+The export itself is only read."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from detector.datasets.intake import open_dataset
+from detector.datasets.io import DatasetWriter
+from detector.datasets.model import Sample
+from detector.datasets.split import stratified_assignment
+
+#: Share of the train split moved to valid when the export has no valid split (at least one frame).
+VALID_SHARE = 0.2
+
+
+def prepare_export(export: Path, out: Path, renames: dict[str, str] | None, seed: int) -> dict:
+    """Copy ``export`` into ``out`` (replaced), splitting its train frames into train and valid when it has no valid
+    frames; returns frames per split and what was done. Refuses an export without training frames."""
+    dataset = open_dataset(export, renames)
+    train, valid, test = (dataset.split(name) for name in ("train", "valid", "test"))
+    if not train:
+        held = ", ".join(f"{name} {len(dataset.split(name))}" for name in ("valid", "test") if dataset.split(name))
+        raise ValueError(f"{export}: no frame in the train split ({held or 'no frames at all'}) - fine-tuning needs "
+                         "frames to train on: re-export with a train split, or run `poles split --data "
+                         f"{export} --out NEW` and fine-tune NEW")
+    moved = not valid
+    if moved:
+        if len(train) < 2:
+            raise ValueError(f"{export}: one train frame and no valid split - annotate at least two frames (one is "
+                             "kept aside to choose the blend on)")
+        shares = {"train": 1.0 - VALID_SHARE, "valid": VALID_SHARE, "test": 0.0}
+        assignment = stratified_assignment(train, shares, seed)  # two or more frames: valid gets at least one
+        train, valid = ([s for s, a in zip(train, assignment) if a == name] for name in ("train", "valid"))
+    with DatasetWriter(out, force=True, protect=dataset.input_folders()) as writer:
+        for split, samples in (("train", train), ("valid", valid), ("test", test)):
+            for sample in samples:
+                writer.copy_sample(Sample(split, sample.image, sample.label, sample.instances))
+    return {"train": len(train), "valid": len(valid), "test": len(test), "valid_made_from_train": moved,
+            "poles": sum(len(s.instances) for s in train + valid + test), "export": str(export)}

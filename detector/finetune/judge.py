@@ -1,0 +1,57 @@
+"""How a fine-tune is judged: the shipped model and the newcomers on the same frames (the team's held-out frames,
+fresh rendered sets), counted as ``poles evaluate`` counts, each newcomer's F1 against the shipped model's with its
+95 % interval over frames, and the recall of poles under 16 px wide (the first thing a small export forgets)."""
+from __future__ import annotations
+
+from dataclasses import asdict
+from pathlib import Path
+
+from detector.atomic import write_json
+from detector.evaluation.paired import f1_difference
+from detector.evaluation.predictors import TorchPredictor
+from detector.evaluation.run import evaluate
+from detector.synth.generate import SynthJob, generate_dataset
+from detector.synth.scene import SceneConfig
+
+#: The model every other is compared with; ``compare_models`` expects it among its models.
+REFERENCE = "shipped"
+#: Width bins (``evaluation.by_width``) that make up "under 16 px".
+SMALL_BINS = ("< 10 px", "10-16 px")
+#: The fresh rendered sets every fine-tune is judged on besides the team's held-out frames: what the shipped model
+#: was made for (varied paint, near and far) and far poles alone (3-9 m, 6-18 px wide). Each has its own seed and is
+#: never trained on.
+RENDERED_SETS = {"rendered": {"far_share": 0.0, "seed": 9101}, "far poles": {"far_share": 1.0, "seed": 9102}}
+
+
+def render_set(folder: Path, frames: int, far_share: float, seed: int, backgrounds: tuple[Path, ...] = (),
+               backlight_share: float | None = None) -> Path:
+    """A fresh 640x480 set, every frame in its test split (over ``backgrounds`` when given)."""
+    config = SceneConfig(far_share=far_share) if backlight_share is None else \
+        SceneConfig(far_share=far_share, backlight_share=backlight_share)
+    return generate_dataset(folder, SynthJob(frames, seed, config=config, backgrounds=backgrounds), force=True,
+                            split="test")
+
+
+def compare_models(models: dict[str, Path], sets: dict[str, tuple[Path, str]], folder: Path, conf: float,
+                   imgsz: int) -> list[dict]:
+    """Every model (checkpoints by name, ``REFERENCE`` among them) on every set (dataset, split) at ``conf``; one row
+    per set and model, written to ``folder``/summary.json with each model's evaluation folder."""
+    rows = []
+    for set_name, (dataset, split) in sets.items():
+        per_image, set_rows = {}, []
+        for model_name, weights in models.items():
+            out = Path(folder) / set_name.replace(" ", "-") / model_name.replace(" ", "-")
+            metrics = evaluate(TorchPredictor(weights, imgsz), dataset, out, split, conf)
+            per_image[model_name] = metrics["per_image"]
+            small = [b for b in metrics["recall_by_width"] if b["width"] in SMALL_BINS]
+            labels, found = sum(b["labels"] for b in small), sum(b["found"] for b in small)
+            set_rows.append({"set": set_name, "model": model_name, "images": metrics["images"],
+                             **{k: metrics[k] for k in ("tp", "fp", "fn", "tn", "precision", "recall", "f1")},
+                             "small_labels": labels, "small_found": found,
+                             "recall_under_16px": found / labels if labels else None, "folder": str(out)})
+        for row in set_rows:
+            if row["model"] != REFERENCE:
+                row["f1_change"] = asdict(f1_difference(per_image[REFERENCE], per_image[row["model"]]))
+        rows += set_rows
+    write_json(Path(folder) / "summary.json", rows)
+    return rows

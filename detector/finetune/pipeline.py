@@ -1,0 +1,239 @@
+"""``poles finetune EXPORT --out RUN``: a team's annotated frames to a deployable model, stage by stage, resumable.
+
+export (check, split) -> paint (measured on the team's poles) -> rehearsal (rendered frames in that paint) ->
+augment (the thesis's operations) -> mix -> train (from the shipped checkpoint, time-capped) -> blend (share chosen
+on the valid split) -> export (FP32 + INT8, the shipped calibration and threshold) -> evaluate (shipped, fine-tune
+and blend on the held-out frames and on fresh rendered sets) -> report.
+"""
+from __future__ import annotations
+
+import shutil
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+from detector.atomic import write_json
+from detector.console import make_console
+from detector.finetune.judge import REFERENCE, RENDERED_SETS, compare_models, render_set
+from detector.finetune.recipe import FinetuneRecipe
+from detector.model_files import ROBOT_WEIGHTS, SHIPPED_WEIGHTS
+from detector.stages import StageLedger, file_fingerprint, stage_key
+from naoslam.shipped import OPERATING_CONF_KEY
+
+console = make_console()
+
+#: The deliverable's file name in RUN/models for each starting model (the accurate one's INT8 copy beside it).
+MODEL_NAMES = {"accurate": "poles-finetuned.onnx", "robot": "poles-robot-finetuned.onnx"}
+
+
+def run_finetune(export: Path, out: Path, recipe: FinetuneRecipe, renames: dict[str, str] | None = None) -> dict:
+    """Run every stage into ``out`` (an earlier fine-tune's folder resumes it); returns the results of each stage.
+    Raises ``StageFailed`` naming the stage that failed (everything before it stays)."""
+    export, out = Path(export), Path(out)
+    _check_run_folder(out, export)
+    out.mkdir(parents=True, exist_ok=True)
+    ledger = StageLedger(out, announce=lambda text: console.rule(f"[bold]{text}", align="left"))
+    console.print(f"[bold]poles finetune[/bold] {export} into {out}: the shipped {recipe.model} model, "
+                  f"{recipe.minutes:g} minutes in all")
+    start = time.perf_counter()
+    results = _stages(ledger, export, out, recipe, renames or {})
+    results["seconds"] = {record.name: round(record.seconds, 1) for record in ledger.timings()}
+    results["wall_seconds_this_call"] = round(time.perf_counter() - start, 1)
+    from detector.finetune.report import write_report
+
+    results["report"] = str(write_report(out / "report.html", results, ledger.timings()))
+    write_json(out / "metrics.json", {key: value for key, value in results.items() if key != "recipe"}
+               | {"recipe": asdict(recipe)})
+    return results
+
+
+def _check_run_folder(out: Path, export: Path) -> None:
+    """Refuse an ``out`` that is a file, holds other files than an earlier fine-tune's, or lies in the export."""
+    resolved, source = out.resolve(), export.resolve()
+    if resolved == source or source in resolved.parents or resolved in source.parents:
+        raise ValueError(f"--out {out} overlaps the export {export}: the export is only read - give a folder "
+                         "outside it")
+    if out.is_dir() and (out / StageLedger.FILE_NAME).is_file():
+        return
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise ValueError(f"--out {out} {'is a file' if not out.is_dir() else 'holds other files'}, not an earlier "
+                         "fine-tune's - give a new or empty folder (or an earlier fine-tune's to resume it); nothing "
+                         "was written")
+
+
+def _export_fingerprint(export: Path) -> str:
+    """Names, sizes and times of every file in the export: a changed export reruns every stage."""
+    files = sorted(p for p in export.rglob("*") if p.is_file())
+    return stage_key(files=[(str(p.relative_to(export)), p.stat().st_size, p.stat().st_mtime_ns) for p in files])
+
+
+def _stages(ledger: StageLedger, export: Path, out: Path, recipe: FinetuneRecipe, renames: dict[str, str]) -> dict:
+    from augment.run import augment_dataset
+    from detector.finetune.intake import prepare_export
+
+    data, augmented, rehearsal, mixed = (out / name for name in ("export", "augmented", "rehearsal", "mixed"))
+    results: dict = {"recipe": asdict(recipe)}
+    key = stage_key(export=_export_fingerprint(export), renames=renames, seed=recipe.seed)
+    results["export"] = ledger.run("export", key, [data / "data.yaml"],
+                                   lambda: prepare_export(export, data, renames, recipe.seed))
+    paint_key = stage_key(export=key)
+    results["paint"] = ledger.run("paint", paint_key, [out / "paint.json"], lambda: _measure_paint(data, out))
+    augment_key = stage_key(export=key, copies=recipe.copies)
+    results["augment"] = ledger.run("augment", augment_key, [augmented / "data.yaml"], lambda: augment_dataset(
+        data, augmented, copies=recipe.copies, seed=recipe.seed, preview=True, force=True))
+    frames = recipe.rehearsal_frames(results["augment"]["train_images_out"])
+    rehearsal_key = stage_key(paint=paint_key, frames=frames, far=recipe.far_share, own=recipe.own_paint_share)
+    results["rehearsal"] = ledger.run("rehearsal", rehearsal_key, [rehearsal / "data.yaml"] if frames else [],
+                                      lambda: _render_rehearsal(rehearsal, results["paint"], frames, recipe))
+    mix_key = stage_key(augment=augment_key, rehearsal=rehearsal_key)
+    results["mix"] = ledger.run("mix", mix_key, [mixed / "data.yaml"],
+                                lambda: _mix(augmented, rehearsal if frames else None, mixed))
+    training = {k: v for k, v in asdict(recipe).items() if k != "evaluation_frames"}
+    train_key = stage_key(mix=mix_key, recipe=training, start=file_fingerprint(starting_weights(recipe)))
+    spent = sum(record.seconds for record in ledger.timings()) / 60
+    run = out / "train"
+    results["train"] = ledger.run("train", train_key, [run / "weights" / "last.pt"],
+                                  lambda: _train(train_key, mixed, run, recipe, spent))
+    conf = float(_starting_metadata(recipe)[OPERATING_CONF_KEY])
+    blend_key = stage_key(train=train_key, conf=conf)
+    results["blend"] = ledger.run("blend", blend_key, [out / "blend"], lambda: _blend(
+        run / "weights" / "last.pt", data, out / "blend", conf, recipe))
+    export_key = stage_key(blend=blend_key)
+    model = out / "models" / MODEL_NAMES[recipe.model]
+    results["export model"] = ledger.run("export model", export_key, [model], lambda: _export_model(
+        Path(results["blend"]["weights"]), model, data, mixed, recipe))
+    evaluate_key = stage_key(export=export_key, frames=recipe.evaluation_frames, sets=RENDERED_SETS)
+    results["evaluate"] = ledger.run("evaluate", evaluate_key, [out / "evaluation" / "summary.json"], lambda: _evaluate(
+        out / "evaluation", data, run / "weights" / "last.pt", results["blend"], conf, recipe))
+    return results
+
+
+def _measure_paint(data: Path, out: Path) -> dict:
+    from detector.synth.team_paint import measure_team_paint
+
+    paint = measure_team_paint(data).as_json()
+    write_json(out / "paint.json", paint)
+    return paint
+
+
+def _render_rehearsal(folder: Path, paint: dict, frames: int, recipe: FinetuneRecipe) -> dict:
+    """Render the rehearsal frames, ``own_paint_share`` of them in the team's paint; none (and the folder removed)
+    when the recipe mixes none."""
+    from detector.synth.generate import SynthJob, generate_dataset
+    from detector.synth.scene import SceneConfig
+
+    if not frames:
+        shutil.rmtree(folder, ignore_errors=True)
+        return {"frames": 0}
+    team_paint = tuple(sorted((letter, tuple(rgb)) for letter, rgb in paint["letters"].items()))
+    config = SceneConfig(team_paint=team_paint, team_paint_share=recipe.own_paint_share, far_share=recipe.far_share)
+    generate_dataset(folder, SynthJob(frames, recipe.seed + 7001, config=config), preview=True, force=True,
+                     split="train")
+    return {"frames": frames, "preview": str(folder / "preview.png")}
+
+
+def _mix(augmented: Path, rehearsal: Path | None, out: Path) -> dict:
+    """The training set: the augmented export's train frames and every rehearsal frame; the export's valid frames
+    (never its test frames) to validate on. Images are linked, not copied."""
+    from detector.datasets.io import DatasetWriter, load_dataset
+
+    team = load_dataset(augmented)
+    rendered = load_dataset(rehearsal).samples if rehearsal is not None else []
+    with DatasetWriter(out, force=True, protect=team.input_folders()) as writer:
+        for sample in team.split("train") + team.split("valid"):
+            writer.add(sample.split, sample.image.name, sample.image, sample.instances, link=True)
+        for sample in rendered:
+            writer.add("train", f"rehearsal_{sample.image.name}", sample.image, sample.instances, link=True)
+    return dict(writer.counts)
+
+
+def _train(key: str, data: Path, run: Path, recipe: FinetuneRecipe, spent_minutes: float) -> dict:
+    """Fine-tune the shipped checkpoint for the minutes left; an interrupted run of the same stage (its key is kept
+    beside the run folder) resumes from its last epoch, a finished one is kept. The final weights are the fine-tune:
+    a valid split of a few frames cannot choose an epoch."""
+    from detector.model_files import read_checkpoint
+    from detector.training.train import TrainSettings, summarise_run, train_model
+
+    last, key_file = run / "weights" / "last.pt", run.with_name(f"{run.name}.key")
+    same_run = key_file.is_file() and key_file.read_text() == key and last.is_file()
+    finished = same_run and read_checkpoint(last).get("epoch", -1) < 0
+    if run.exists() and not same_run:
+        shutil.rmtree(run)
+    key_file.write_text(key)
+    minutes = recipe.training_minutes(spent_minutes)
+    console.print(f"training for {minutes:.1f} minutes ({spent_minutes:.1f} spent preparing, "
+                  f"{recipe.after_training_minutes:.1f} kept for what follows)")
+    settings = TrainSettings(model=recipe.start.architecture, epochs=1000, imgsz=recipe.training_size,
+                             batch=recipe.batch, patience=1000, seed=recipe.seed, time_hours=minutes / 60,
+                             hyperparameters=recipe.hyperparameters())
+    if not finished:
+        train_model(data, run, settings, weights=starting_weights(recipe), resume=same_run)
+    return {**summarise_run(run), "minutes": round(minutes, 2), "curves": str(run / "training_curves.png"),
+            "weights": str(run / "weights" / "last.pt")}
+
+
+def starting_weights(recipe: FinetuneRecipe) -> Path:
+    """The shipped checkpoint a fine-tune starts from and is blended and compared with."""
+    return ROBOT_WEIGHTS if recipe.model == "robot" else SHIPPED_WEIGHTS
+
+
+def _starting_metadata(recipe: FinetuneRecipe) -> dict:
+    """The starting model's ONNX metadata (range calibration, operating threshold), which the fine-tune is judged
+    at and ships with."""
+    from detector.model_files import read_info
+    from naoslam.shipped import profile_model
+
+    return read_info(profile_model(recipe.start.profile)).extra
+
+
+def _blend(finetuned: Path, data: Path, folder: Path, conf: float, recipe: FinetuneRecipe) -> dict:
+    from detector.finetune.blend import choose_blend
+
+    shutil.rmtree(folder, ignore_errors=True)
+    folder.mkdir(parents=True)
+    return choose_blend(starting_weights(recipe), finetuned, data, folder, conf, recipe.training_size)
+
+
+def _export_model(weights: Path, model: Path, data: Path, mixed: Path, recipe: FinetuneRecipe) -> dict:
+    """ONNX of the chosen blend, exported as its starting model is (FP32 and INT8, or FP32 with a dynamic input),
+    verified against PyTorch on the export's frames, carrying the starting model's operating threshold and its range
+    calibration (where the input width is the one that calibration was measured at; at another width the masks read
+    other sizes, and `poles calibrate` must measure them)."""
+    from detector.model_files import add_metadata
+    from export.onnx_export import int8_path
+    from export.run import ExportJob, run_export
+
+    start = recipe.start
+    report = run_export(ExportJob(weights, model, None, data, int8=start.int8, calib_data=mixed if start.int8 else None,
+                                  force=True, dynamic=start.dynamic))
+    written = [model, int8_path(model)] if start.int8 else [model]
+    stamp = _starting_metadata(recipe)
+    calibrated = stamp["calibration"].get("input_width") == report["input_hw"][1]
+    if not calibrated:
+        stamp = {key: value for key, value in stamp.items() if key != "calibration"}
+        console.print(f"[yellow]no range calibration in {model}: the shipped one was measured at "
+                      f"{_starting_metadata(recipe)['calibration'].get('input_width')} px input, this model runs at "
+                      f"{report['input_hw'][1]} - run `poles calibrate --model {model} --embed {model}`")
+    for path in written:
+        add_metadata(path, **stamp)
+    return {"fp32": str(model), "int8": str(int8_path(model)) if start.int8 else None, "calibrated": calibrated,
+            **{key: report.get(key) for key in ("fp32_vs_pytorch", "int8_vs_fp32", "int8_problems", "latency_ms",
+                                                "recommended")}}
+
+
+def _evaluate(folder: Path, data: Path, finetuned: Path, blend: dict, conf: float, recipe: FinetuneRecipe) -> dict:
+    """Shipped model, fine-tune and chosen blend on the held-out frames (test split, else valid) and on fresh
+    rendered sets, at the shipped threshold."""
+    from detector.datasets.io import load_dataset
+
+    shutil.rmtree(folder, ignore_errors=True)
+    held_out = "test" if load_dataset(data).split("test") else "valid"
+    sets = {f"your {held_out} frames": (data, held_out)}
+    for name, kind in RENDERED_SETS.items():
+        sets[name] = (render_set(folder / "sets" / name.replace(" ", "-"), recipe.evaluation_frames,
+                                 kind["far_share"], kind["seed"]),
+                      "test")
+    models = {REFERENCE: starting_weights(recipe), "fine-tune": finetuned,
+              f"blend {blend['chosen']:g}": Path(blend["weights"])}
+    return {"held_out": held_out, "conf": conf,
+            "rows": compare_models(models, sets, folder, conf, recipe.training_size)}

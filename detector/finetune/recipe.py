@@ -1,0 +1,107 @@
+"""How ``poles finetune`` trains on a few hundred real frames: the settings, and how the minutes are shared.
+
+The defaults were chosen by the runs in docs/finetune.md (the rule that picked them was written there before the
+deciding runs ended). Torch-free, so the command line builds its parser without loading a framework.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+#: Blend shares tried on the export's valid split: the fine-tune's share, 0 being the shipped model.
+BLEND_SHARES = (0.0, 0.25, 0.5, 0.75, 1.0)
+
+
+@dataclass(frozen=True)
+class StartingModel:
+    """A shipped model a team fine-tunes: the ``LandmarkDetector`` profile that runs it, the width it was trained at,
+    its backbone's layer count (what ``freeze`` keeps by default) and how it is exported (the accurate model as FP32
+    and INT8 at a fixed input; the robot model as FP32 only, which runs faster than INT8 at the Atom's instruction
+    set, with a dynamic input for the horizon band)."""
+
+    profile: str
+    architecture: str
+    imgsz: int
+    backbone_layers: int
+    int8: bool
+    dynamic: bool
+
+
+#: The shipped models ``poles finetune --model`` starts from.
+STARTING_MODELS = {"accurate": StartingModel("accurate", "yolov8n-seg", 640, 10, int8=True, dynamic=False),
+                   "robot": StartingModel("robot", "robot-p4-seg", 320, 8, int8=False, dynamic=True)}
+
+
+@dataclass(frozen=True)
+class FinetuneRecipe:
+    """One fine-tune's settings. ``model``: the shipped model it starts from (``STARTING_MODELS``);
+    ``rehearsal_share``: the share of the training frames that are rendered (``own_paint_share`` of them in the
+    team's paint, the rest in the renderer's own, and ``far_share`` of them with far poles only); ``freeze``: the first layers left as shipped (None: the starting
+    model's backbone); ``lr0``/``warmup_epochs``: AdamW's step and its ramp; ``imgsz`` None: the starting model's."""
+
+    model: str = "accurate"
+    minutes: float = 15.0
+    copies: int = 7
+    rehearsal_share: float = 0.5
+    far_share: float = 0.5
+    own_paint_share: float = 0.5
+    freeze: int | None = None
+    lr0: float = 0.0005
+    warmup_epochs: float = 1.0
+    imgsz: int | None = None
+    batch: int = 8
+    seed: int = 0
+    #: Frames in each rendered set the models are judged on.
+    evaluation_frames: int = 100
+
+    def __post_init__(self) -> None:
+        if self.model not in STARTING_MODELS:
+            raise ValueError(f"--model {self.model!r} is not one of {', '.join(STARTING_MODELS)}")
+        if not (math.isfinite(self.minutes) and self.minutes > 0):
+            raise ValueError(f"--minutes {self.minutes} must be a positive number")
+        if not 0.0 <= self.rehearsal_share < 1.0:
+            raise ValueError(f"--rehearsal-share {self.rehearsal_share} must lie in 0..1 (1 would train on no "
+                             "frame of yours)")
+        for name in ("far_share", "own_paint_share"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ValueError(f"{name.replace('_', ' ')} {getattr(self, name)} must lie in 0..1")
+        if self.copies < 0:
+            raise ValueError(f"--copies {self.copies} must be 0 or more")
+        if self.freeze is not None and self.freeze < 0:
+            raise ValueError(f"--freeze {self.freeze} must be 0 or more")
+        if self.imgsz is not None and self.imgsz % 32:
+            raise ValueError(f"--imgsz {self.imgsz} is not a multiple of the model stride 32 (try "
+                             f"{self.imgsz // 32 * 32 or 32})")
+
+    @property
+    def start(self) -> StartingModel:
+        return STARTING_MODELS[self.model]
+
+    @property
+    def training_size(self) -> int:
+        """The training (and judging) image size: ``imgsz``, else the starting model's."""
+        return self.imgsz or self.start.imgsz
+
+    @property
+    def frozen_layers(self) -> int:
+        """Layers kept as shipped: ``freeze``, else the starting model's backbone."""
+        return self.start.backbone_layers if self.freeze is None else self.freeze
+
+    def rehearsal_frames(self, real_training_frames: int) -> int:
+        """Rendered frames to mix with ``real_training_frames`` (the augmented export) to reach ``rehearsal_share``."""
+        return math.ceil(real_training_frames * self.rehearsal_share / (1.0 - self.rehearsal_share))
+
+    @property
+    def after_training_minutes(self) -> float:
+        """Minutes kept for what follows training on two cores: blending and export (about half a minute) and the
+        evaluation, three models on the held-out frames and two rendered sets at about 6.5 frames a second."""
+        return 0.5 + 3 * (2 * self.evaluation_frames + 20) / 6.5 / 60
+
+    def training_minutes(self, spent_minutes: float) -> float:
+        """Minutes left for training after ``spent_minutes`` of preparation, keeping ``after_training_minutes`` for
+        the rest; at least a minute (or the whole time, when that is shorter)."""
+        return max(min(1.0, self.minutes), self.minutes - spent_minutes - self.after_training_minutes)
+
+    def hyperparameters(self) -> dict:
+        """The Ultralytics training arguments this recipe sets beyond ``TrainSettings``' own."""
+        return {"optimizer": "AdamW", "lr0": self.lr0, "warmup_epochs": self.warmup_epochs, "freeze": self.frozen_layers}

@@ -1,0 +1,189 @@
+"""`poles finetune`: a tiny rendered export goes through every stage to models, a report and a metrics file; the
+paint measurement recovers a paint it was told; an export without a valid split is split; a rerun resumes; bad input
+is refused with one message and nothing written into the export."""
+from __future__ import annotations
+
+import colorsys
+import hashlib
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from detector.cli import main
+from detector.datasets.io import load_dataset
+from detector.finetune.intake import prepare_export
+from detector.finetune.pipeline import run_finetune
+from detector.finetune.recipe import BLEND_SHARES, FinetuneRecipe
+from detector.stages import StageFailed, StageLedger
+from detector.synth.generate import SynthJob, generate_dataset
+from detector.synth.scene import SceneConfig
+from detector.synth.team_paint import measure_team_paint
+from naoslam.detector import LandmarkDetector
+
+#: A tiny recipe: 64 px, one augmented copy, a few seconds of training, 10-frame rendered sets.
+TINY = FinetuneRecipe(minutes=0.3, copies=1, imgsz=64, evaluation_frames=10)
+
+
+def _digest(folder: Path) -> str:
+    """One hash over every file's path and bytes under ``folder``."""
+    digest = hashlib.sha256()
+    for path in sorted(p for p in folder.rglob("*") if p.is_file()):
+        digest.update(str(path.relative_to(folder)).encode() + path.read_bytes())
+    return digest.hexdigest()
+
+
+@pytest.fixture(scope="module")
+def export(tmp_path_factory) -> Path:
+    """A 16-frame rendered export at 640x480 (read-only)."""
+    return generate_dataset(tmp_path_factory.mktemp("export") / "export", SynthJob(16, seed=21), workers=1,
+                            progress=False)
+
+
+@pytest.fixture(scope="module")
+def finished(export, tmp_path_factory) -> tuple[Path, dict, str]:
+    """A whole tiny fine-tune of ``export``: its run folder, its results, and the export's digest before it ran."""
+    before = _digest(export)
+    out = tmp_path_factory.mktemp("finetune") / "run"
+    return out, run_finetune(export, out, TINY), before
+
+
+def test_finetune_writes_the_models_the_report_and_the_metrics_and_leaves_the_export_alone(export, finished):
+    out, results, before = finished
+    assert _digest(export) == before
+    model = out / "models" / "poles-finetuned.onnx"
+    detector = LandmarkDetector(model)
+    # The shipped threshold rides along; the shipped calibration (measured at 640 px input) not at this test's 64 px.
+    assert detector.stored_conf == LandmarkDetector().stored_conf and detector.calibration is None
+    assert results["export model"]["calibrated"] is False
+    assert (out / "models" / "poles-finetuned-int8.onnx").is_file()
+    metrics = json.loads((out / "metrics.json").read_text())
+    sets = {row["set"] for row in metrics["evaluate"]["rows"]}
+    assert sets == {"your test frames", "rendered", "far poles"}
+    assert {row["model"] for row in metrics["evaluate"]["rows"]} == {"shipped", "fine-tune",
+                                                                     f"blend {results['blend']['chosen']:g}"}
+    for row in metrics["evaluate"]["rows"]:
+        assert row["tp"] + row["fn"] > 0 and (row["model"] == "shipped") == ("f1_change" not in row)
+    page = (out / "report.html").read_text()
+    assert "What the fine-tune changed" in page and "far poles" in page and "data:image/png;base64" in page
+    assert metrics["rehearsal"]["frames"] == TINY.rehearsal_frames(metrics["augment"]["train_images_out"]) > 0
+
+
+def test_the_robot_model_is_fine_tuned_and_shipped_as_the_robot_model_is(export, tmp_path):
+    from detector.model_files import read_info
+    from naoslam.shipped import OPERATING_CONF_KEY, robot_path
+
+    results = run_finetune(export, tmp_path / "run", FinetuneRecipe(model="robot", minutes=0.2, copies=1, imgsz=64,
+                                                                    evaluation_frames=10))
+    model = Path(results["export model"]["fp32"])
+    assert model.name == "poles-robot-finetuned.onnx" and results["export model"]["int8"] is None
+    assert read_info(model).extra[OPERATING_CONF_KEY] == read_info(robot_path()).extra[OPERATING_CONF_KEY]
+    assert results["evaluate"]["conf"] == read_info(robot_path()).extra[OPERATING_CONF_KEY]
+    assert LandmarkDetector(model).any_input_size  # runs on the horizon band, as the shipped robot model does
+
+
+def test_the_blend_is_the_best_valid_f1_a_tie_going_to_the_share_nearest_a_half(finished):
+    _, results, _ = finished
+    shares = results["blend"]["shares"]
+    assert [row["share"] for row in shares] == list(BLEND_SHARES)
+    best = max(row["f1"] for row in shares)
+    tied = [row["share"] for row in shares if row["f1"] == best]
+    assert results["blend"]["chosen"] == min(tied, key=lambda share: abs(share - 0.5))
+
+
+def test_a_rerun_skips_every_finished_stage_and_redoes_what_was_lost(export, finished, tmp_path):
+    out, _, _ = finished
+    copy = Path(shutil.copytree(out, tmp_path / "run", symlinks=True))
+    shutil.rmtree(copy / "models")
+    before = json.loads((copy / StageLedger.FILE_NAME).read_text())
+    run_finetune(export, copy, TINY)
+    after = json.loads((copy / StageLedger.FILE_NAME).read_text())
+    assert after["train"] == before["train"]  # not trained again
+    assert after["export model"]["seconds"] != before["export model"]["seconds"]
+    assert (copy / "models" / "poles-finetuned.onnx").is_file()
+
+
+def test_a_failed_stage_keeps_the_stages_before_it(export, tmp_path, monkeypatch):
+    from detector.finetune import pipeline
+
+    def refuse(*args, **kwargs):
+        raise ValueError("no room")
+
+    monkeypatch.setattr(pipeline, "_render_rehearsal", refuse)
+    with pytest.raises(StageFailed, match="rehearsal"):
+        run_finetune(export, tmp_path / "run", TINY)
+    ledger = json.loads((tmp_path / "run" / StageLedger.FILE_NAME).read_text())
+    assert ledger["augment"]["status"] == "done" and ledger["rehearsal"]["status"] == "failed"
+
+
+def test_paint_from_recovers_a_paint_the_renderer_was_told(tmp_path):
+    told = {"p": (0.80, 0.30, 0.45), "b": (0.20, 0.35, 0.75), "y": (0.85, 0.75, 0.20), "g": (0.12, 0.38, 0.22)}
+    frames = generate_dataset(tmp_path / "painted", SynthJob(60, seed=5, config=SceneConfig(
+        team_paint=tuple(sorted(told.items())))), progress=False)
+    paint = measure_team_paint(frames)
+    for letter, rgb in told.items():
+        hue_told = colorsys.rgb_to_hsv(*rgb)[0] * 360
+        assert paint.measured[letter] > 0
+        assert abs((paint.hue_degrees(letter) - hue_told + 180) % 360 - 180) < 5, letter
+
+
+def test_poles_synth_paint_from_writes_the_paint_it_measured(synth_dataset, tmp_path, capsys):
+    assert main(["synth", "--out", str(tmp_path / "painted"), "--images", "4", "--paint-from", str(synth_dataset),
+                 "--workers", "1"]) == 0
+    paint = json.loads((tmp_path / "painted" / "paint.json").read_text())
+    generator = json.loads((tmp_path / "painted" / "annotations.json").read_text())["generator"]
+    assert generator["team_paint"] == {letter: rgb for letter, rgb in paint["letters"].items()}
+    assert "poles measured" in capsys.readouterr().out
+
+
+def test_an_export_without_a_valid_split_is_split_from_its_train_frames(dataset_copy, tmp_path):
+    for folder in ("images", "labels"):
+        for path in (dataset_copy / "valid" / folder).iterdir():
+            path.unlink()
+    train = len(load_dataset(dataset_copy).split("train"))
+    summary = prepare_export(dataset_copy, tmp_path / "prepared", None, seed=0)
+    prepared = load_dataset(tmp_path / "prepared")
+    assert summary["valid_made_from_train"] and len(prepared.split("valid")) >= 1
+    assert len(prepared.split("train")) + len(prepared.split("valid")) == train
+
+
+def test_an_export_without_train_frames_is_refused_naming_it(dataset_copy, tmp_path, capsys):
+    for folder in ("images", "labels"):
+        for path in (dataset_copy / "train" / folder).iterdir():
+            path.unlink()
+    before = _digest(dataset_copy)
+    assert main(["finetune", str(dataset_copy), "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err
+    assert str(dataset_copy) in err and "poles split" in err and "Traceback" not in err
+    assert _digest(dataset_copy) == before
+
+
+def test_a_class_that_names_no_pole_is_refused_pointing_at_rename(dataset_copy, tmp_path, capsys):
+    yaml = dataset_copy / "data.yaml"
+    yaml.write_text(yaml.read_text().replace("'bp'", "'ball'"))
+    assert main(["finetune", str(dataset_copy), "--out", str(tmp_path / "run")]) == 2
+    assert "--rename" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("out", ["inside", "file", "other"])
+def test_an_out_folder_that_is_not_a_fine_tunes_is_refused(synth_dataset, tmp_path, out, capsys):
+    target = {"inside": synth_dataset / "run", "file": tmp_path / "file", "other": tmp_path / "other"}[out]
+    if out == "file":
+        target.write_text("x")
+    elif out == "other":
+        target.mkdir()
+        (target / "notes.txt").write_text("mine")
+    assert main(["finetune", str(synth_dataset), "--out", str(target)]) == 2
+    assert "--out" in capsys.readouterr().err
+    assert not (synth_dataset / "run").exists()
+
+
+def test_the_recipe_refuses_a_share_that_leaves_no_frame_of_yours_and_shares_the_minutes():
+    with pytest.raises(ValueError, match="rehearsal-share"):
+        FinetuneRecipe(rehearsal_share=1.0)
+    assert FinetuneRecipe(rehearsal_share=0.5).rehearsal_frames(88) == 88
+    assert FinetuneRecipe(rehearsal_share=0.0).rehearsal_frames(88) == 0
+    recipe = FinetuneRecipe(minutes=15)
+    assert recipe.training_minutes(1.0) == pytest.approx(14.0 - recipe.after_training_minutes)
+    assert FinetuneRecipe(minutes=0.3).training_minutes(5.0) == 0.3
