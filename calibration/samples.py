@@ -14,8 +14,9 @@ from detector.datasets.model import Dataset
 from detector.datasets.truth import ImageTruth, load_truth
 from detector.matching import mask_iou
 from naoslam.camera import NAO_HFOV_DEG, CameraPose, PinholeCamera
-from naoslam.colour_filter import ColourDetection, ColourFilter
-from naoslam.detector import LandmarkDetector, mask_centre_column, rotated_box_of_mask
+from naoslam.colour_filter import ColourFilter
+from naoslam.detections import Detection, mask_centre_column, rotated_box_of_mask
+from naoslam.detector import LandmarkDetector
 from naoslam.ground import GroundView
 from naoslam.landmarks import PoleGeometry
 from naoslam.measurement import band_spacing_per_cm, on_axis_size
@@ -128,7 +129,7 @@ def _matching_detection(detections, cls: str, label_mask: np.ndarray):
     return same[best] if overlap[best] >= MATCH_IOU else None
 
 
-def _colour_band_distance(found: list[ColourDetection], cls: str, label_mask: np.ndarray) -> float | None:
+def _colour_band_distance(found: list[Detection], cls: str, label_mask: np.ndarray) -> float | None:
     """The colour filter's band distance (px) for a labelled pole: its detection of that class whose band-dividing
     point lies on the pole's mask, or None where the filter misses the pole."""
     height, width = label_mask.shape

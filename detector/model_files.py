@@ -5,13 +5,14 @@ through Ultralytics (``ultralytics_predict``), which export verification and eva
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import onnx
 
 from detector.atomic import atomic_path
+from naoslam.detections import Detection
 from naoslam.measurement import RangeCalibration
 from naoslam.model_info import METADATA_KEY, ModelInfo
 
@@ -58,18 +59,8 @@ def read_checkpoint(path: Path) -> dict:
     return checkpoint
 
 
-@dataclass(frozen=True)
-class FrameDetections:
-    """Detections of one frame: class ids, scores, xyxy boxes and full-frame boolean masks."""
-
-    class_ids: np.ndarray
-    scores: np.ndarray
-    boxes: np.ndarray
-    masks: np.ndarray
-
-
 def ultralytics_predict(model: Path, frames: list[np.ndarray], input_hw: tuple[int, int],
-                        conf: float) -> list[FrameDetections]:
+                        conf: float) -> list[list[Detection]]:
     """Ultralytics' own predictions (a .pt on PyTorch, or an .onnx through its AutoBackend) with full-size masks."""
     from ultralytics import YOLO
 
@@ -77,13 +68,10 @@ def ultralytics_predict(model: Path, frames: list[np.ndarray], input_hw: tuple[i
     return [ultralytics_frame(predictor, frame, list(input_hw), conf) for frame in frames]
 
 
-def ultralytics_frame(predictor, frame: np.ndarray, imgsz: int | list[int], conf: float) -> FrameDetections:
+def ultralytics_frame(predictor, frame: np.ndarray, imgsz: int | list[int], conf: float) -> list[Detection]:
     """One frame through a loaded Ultralytics model, masks at the frame's resolution (``retina_masks``)."""
     result = predictor.predict(frame, imgsz=imgsz, conf=conf, retina_masks=True, device="cpu", verbose=False)[0]
-    masks = (result.masks.data.numpy() > 0.5 if result.masks is not None
-             else np.zeros((0, *frame.shape[:2]), dtype=bool))
-    boxes = result.boxes
-    return FrameDetections(boxes.cls.numpy().astype(int), boxes.conf.numpy(), boxes.xyxy.numpy(), masks)
+    return Detection.from_ultralytics(result, frame.shape)
 
 
 def read_info(path: Path) -> ModelInfo:

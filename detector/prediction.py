@@ -21,7 +21,8 @@ from detector.datasets.io import (IMAGE_SUFFIXES, DatasetWriter, check_output_fi
 from detector.datasets.model import Instance
 from detector.datasets.polygons import mask_to_polygon
 from detector.preview import CLASS_BGR, contact_sheet, draw_label
-from naoslam.detector import Detection, LandmarkDetector
+from naoslam.detections import Detection
+from naoslam.detector import LandmarkDetector
 from naoslam.landmarks import CLASSES
 from naoslam.front_end import FrontEnd
 from naoslam.measurement import Measurement

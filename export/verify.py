@@ -7,22 +7,15 @@ from pathlib import Path
 
 import numpy as np
 
-from detector.matching import box_iou, greedy_match, mask_iou
-from detector.model_files import FrameDetections
+from detector.matching import box_iou, greedy_match
+from naoslam.detections import Detection
 from naoslam.detector import LandmarkDetector
 
 
-def frontend_predict(model: Path, frames: list[np.ndarray], conf: float) -> list[FrameDetections]:
-    """The naoslam front end's predictions on the same frames."""
+def frontend_predict(model: Path, frames: list[np.ndarray], conf: float) -> list[list[Detection]]:
+    """The naoslam front end's detections on the same frames."""
     detector = LandmarkDetector(model, conf=conf, classes=None)
-    out = []
-    for frame in frames:
-        found = detector(frame)
-        masks = np.array([d.full_mask(frame.shape) for d in found], dtype=bool).reshape(-1, *frame.shape[:2])
-        out.append(FrameDetections(np.array([d.class_id for d in found], dtype=int),
-                                   np.array([d.confidence for d in found]),
-                                   np.array([d.box for d in found], dtype=float).reshape(-1, 4), masks))
-    return out
+    return [detector(frame) for frame in frames]
 
 
 @dataclass(frozen=True)
@@ -81,30 +74,34 @@ class Agreement:
         return asdict(self)
 
 
-def compare(reference: list[FrameDetections], candidate: list[FrameDetections], conf: float,
+def compare(reference: list[list[Detection]], candidate: list[list[Detection]], conf: float,
             margin: float = 0.05) -> Agreement:
     """Match ``candidate`` to ``reference`` frame by frame; unmatched detections scoring over conf + margin count."""
     box_ious, mask_ious, score_diffs = [], [], []
     mismatches = unmatched = 0
     for ref, cand in zip(reference, candidate, strict=True):
-        ious = box_iou(cand.boxes, ref.boxes)
-        pairs = greedy_match(ious, cand.scores, 0.5)
-        masks = mask_iou(cand.masks, ref.masks)
+        ious = box_iou(_boxes(cand), _boxes(ref))
+        pairs = greedy_match(ious, np.array([d.confidence for d in cand]), 0.5)
         for c, r in pairs:
             box_ious.append(ious[c, r])
-            mask_ious.append(masks[c, r])
-            score_diffs.append(abs(cand.scores[c] - ref.scores[r]))
-            mismatches += int(cand.class_ids[c] != ref.class_ids[r])
+            mask_ious.append(cand[c].mask_iou(ref[r]))
+            score_diffs.append(abs(cand[c].confidence - ref[r].confidence))
+            mismatches += int(cand[c].class_id != ref[r].class_id)
         matched_c, matched_r = {c for c, _ in pairs}, {r for _, r in pairs}
-        unmatched += sum(1 for i, s in enumerate(cand.scores) if i not in matched_c and s > conf + margin)
-        unmatched += sum(1 for i, s in enumerate(ref.scores) if i not in matched_r and s > conf + margin)
+        unmatched += sum(1 for i, d in enumerate(cand) if i not in matched_c and d.confidence > conf + margin)
+        unmatched += sum(1 for i, d in enumerate(ref) if i not in matched_r and d.confidence > conf + margin)
 
     def stat(values: list[float], fn, empty: float) -> float:
         return float(fn(values)) if values else empty
 
-    return Agreement(len(reference), sum(len(r.scores) for r in reference), sum(len(c.scores) for c in candidate),
+    return Agreement(len(reference), sum(map(len, reference)), sum(map(len, candidate)),
                      len(box_ious), unmatched, mismatches, stat(box_ious, np.min, 1.0), stat(box_ious, np.mean, 1.0),
                      stat(mask_ious, np.min, 1.0), stat(mask_ious, np.mean, 1.0), stat(score_diffs, np.max, 0.0))
+
+
+def _boxes(detections: list[Detection]) -> np.ndarray:
+    """The detections' xyxy boxes as an (N, 4) array."""
+    return np.array([d.box for d in detections], dtype=float).reshape(-1, 4)
 
 
 def median_latency_ms(models: dict[str, Path], frames: list[np.ndarray], repeats: int = 3) -> dict[str, float]:

@@ -14,7 +14,7 @@ import importlib
 _PUBLIC = {
     "FrontEnd": "naoslam.front_end",
     "LandmarkDetector": "naoslam.detector",
-    "Detection": "naoslam.detector",
+    "Detection": "naoslam.detections",
     "shipped_model": "naoslam.shipped",
     "shipped_calibration": "naoslam.detector",
     "RangeCalibration": "naoslam.measurement",

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from naoslam.detections import Detection
 from naoslam.frames import bgr_frame
 
 #: OpenCV HSV ranges (H 0..179): (hue ranges, minimum saturation, maximum saturation, minimum value).
@@ -61,31 +62,6 @@ class Segment:
     bottom: int
 
 
-@dataclass(frozen=True)
-class ColourDetection:
-    """A landmark found by colour: class, the two band centres, the band-dividing point and the band mask."""
-
-    name: str
-    upper: tuple[float, float]
-    lower: tuple[float, float]
-    mask: np.ndarray
-    confidence: float = 1.0
-
-    @property
-    def divide_centre(self) -> tuple[float, float]:
-        """Centre of the line between the two bands (midpoint of the band centres)."""
-        return ((self.upper[0] + self.lower[0]) / 2, (self.upper[1] + self.lower[1]) / 2)
-
-    @property
-    def band_distance_px(self) -> float:
-        """Pixel length between the two band centres: the colour filter's range measure."""
-        return math.dist(self.upper, self.lower)
-
-    @property
-    def centre_column(self) -> float:
-        return self.divide_centre[0]
-
-
 class ColourFilter:
     """Finds pink + (blue | yellow | green) + white chains in BGR frames."""
 
@@ -100,7 +76,9 @@ class ColourFilter:
         q = (frame >> self._shift).astype(np.int32)
         return self.lut[(q[..., 0] << (2 * LUT_BITS)) | (q[..., 1] << LUT_BITS) | q[..., 2]]
 
-    def __call__(self, frame: np.ndarray) -> list[ColourDetection]:
+    def __call__(self, frame: np.ndarray) -> list[Detection]:
+        """Every pink + colour + white chain in a BGR frame, as a detection of confidence 1 whose mask is its two
+        bands, whose band centres are given and whose column is their midpoint's."""
         frame = bgr_frame(frame)
         colours = self.classify(frame)
         pink = (colours & BITS["p"]) > 0
@@ -119,8 +97,9 @@ class ColourFilter:
             origin = (window[1].start, window[0].start)
             full = np.zeros(pink.shape, bool)
             full[window] = upper_mask | lower_mask
-            found.append(ColourDetection("p" + name if step[1] > 0 else name + "p", _centre(upper_mask, origin),
-                                         _centre(lower_mask, origin), full))
+            centres = (_centre(upper_mask, origin), _centre(lower_mask, origin))
+            found.append(Detection.from_mask("p" + name if step[1] > 0 else name + "p", 1.0, full,
+                                             centre_column=(centres[0][0] + centres[1][0]) / 2, band_centres=centres))
         return found
 
     def _segments(self, mask: np.ndarray) -> list[tuple[Segment, tuple[slice, slice]]]:

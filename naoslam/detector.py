@@ -17,6 +17,7 @@ import numpy as np
 import onnxruntime as ort
 
 from naoslam.camera import NAO_HFOV_DEG, CameraPose, PinholeCamera
+from naoslam.detections import Detection, mask_centre_column, rotated_box_of_mask
 from naoslam.engines import ENGINES, OpenVinoForward
 from naoslam.frames import bgr_frame
 from naoslam.ground import GroundView
@@ -37,51 +38,6 @@ def valid_confidence(conf: float) -> float:
     if not 0.0 < conf < 1.0:
         raise ValueError(f"confidence threshold {conf} must lie between 0 and 1")
     return conf
-
-
-@dataclass(frozen=True)
-class RotatedBox:
-    """Minimum-area rectangle around a mask: centre (px), width/height (px) and tilt of the height side from vertical."""
-
-    cx: float
-    cy: float
-    width: float
-    height: float
-    angle_deg: float
-
-    @classmethod
-    def of_points(cls, points: np.ndarray) -> "RotatedBox":
-        """Fit ``cv2.minAreaRect`` to (N, 2) points; "height" is the side closer to the image vertical."""
-        (cx, cy), _, _ = rect = cv2.minAreaRect(points.astype(np.float32))
-        corners = cv2.boxPoints(rect)
-        side_a, side_b = corners[1] - corners[0], corners[2] - corners[1]
-        upright, across = (side_a, side_b) if abs(side_a[1]) >= abs(side_b[1]) else (side_b, side_a)
-        if upright[1] > 0:
-            upright = -upright
-        angle = float(np.degrees(np.arctan2(upright[0], -upright[1])))
-        return cls(float(cx), float(cy), float(np.hypot(*across)), float(np.hypot(*upright)), angle)
-
-
-@dataclass(frozen=True)
-class Detection:
-    """One pole: class, confidence, box (x1, y1, x2, y2 in frame pixels) and its mask cropped to ``mask_origin``."""
-
-    class_id: int
-    name: str
-    confidence: float
-    box: tuple[float, float, float, float]
-    mask: np.ndarray
-    mask_origin: tuple[int, int]
-    rotated_box: RotatedBox | None
-    centre_column: float
-
-    def full_mask(self, frame_shape: tuple[int, int]) -> np.ndarray:
-        """The mask as a boolean array the size of the frame (height, width)."""
-        out = np.zeros(frame_shape[:2], dtype=bool)
-        x0, y0 = self.mask_origin
-        h, w = self.mask.shape
-        out[y0:y0 + h, x0:x0 + w] = self.mask
-        return out
 
 
 @dataclass(frozen=True)
@@ -377,20 +333,6 @@ def _shifted(detection: Detection, rows: int) -> Detection:
         rotated = replace(rotated, cy=rotated.cy + rows)
     return replace(detection, box=(x1, y1 + rows, x2, y2 + rows),
                    mask_origin=(detection.mask_origin[0], detection.mask_origin[1] + rows), rotated_box=rotated)
-
-
-def rotated_box_of_mask(mask: np.ndarray, origin: tuple[int, int] = (0, 0)) -> RotatedBox | None:
-    """Minimum-area rectangle around all of a mask's outlines (None for an empty mask), in frame pixels."""
-    contours, _ = cv2.findContours(np.ascontiguousarray(mask, dtype=np.uint8), cv2.RETR_EXTERNAL,
-                                   cv2.CHAIN_APPROX_NONE)
-    if not contours:
-        return None
-    return RotatedBox.of_points(np.concatenate(contours).reshape(-1, 2) + origin)
-
-
-def mask_centre_column(mask: np.ndarray, origin: tuple[int, int] = (0, 0)) -> float:
-    """Mean column of a mask's pixels as a continuous image coordinate (pixel centres at index + 0.5)."""
-    return float(np.nonzero(mask)[1].mean() + origin[0] + 0.5)
 
 
 def _mask_in_box(coefficients: np.ndarray, protos: np.ndarray, frame_box: np.ndarray,

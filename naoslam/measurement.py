@@ -51,7 +51,7 @@ class Measurement:
     range_std: float
     bearing_std: float
     source: str = ""
-    #: The detection it was measured from (a ``Detection`` or the colour filter's ``ColourDetection``), if any.
+    #: The detection it was measured from (``naoslam.detections.Detection``), if any.
     detection: object | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -215,7 +215,7 @@ class MeasurementModel:
 
     def measure(self, detections, image_width: int, camera_pose: CameraPose | None = None,
                 image_height: int | None = None, view: GroundView | None = None) -> list[Measurement]:
-        """Measurements for detections (``naoslam.detector.Detection``) above the confidence threshold; a
+        """Measurements for detections (``naoslam.detections.Detection``) above the confidence threshold; a
         ``camera_pose`` needs the ``image_height`` too, or pass the frame's ground ``view`` already built."""
         if view is None and camera_pose is not None:
             if image_height is None:

@@ -20,13 +20,14 @@ from detector.datasets.truth import load_truth
 from detector.evaluation.by_width import label_width_px, recall_by_width, width_bin_names
 from detector.evaluation.counting import (best_threshold, confusion_matrix, evaluate_image, outcome, precision_recall,
                                           totals)
-from detector.evaluation.predictors import ColourFilterPredictor, OnnxPredictor, Prediction
+from detector.evaluation.predictors import ColourFilterPredictor, OnnxPredictor
 from detector.evaluation.run import evaluate
 from detector.synth.generate import SynthJob, generate_dataset
 from detector.synth.render import render_scene
 from detector.synth.scene import calibration_scene
 from naoslam.camera import PinholeCamera
 from naoslam.colour_filter import ColourFilter
+from naoslam.detections import Detection
 from naoslam.detector import LandmarkDetector
 from naoslam.landmarks import CLASSES, PoleGeometry
 from naoslam.shipped import DEFAULT_CONF
@@ -302,14 +303,16 @@ def _rectangle(x0, width=10, height=40, shape=(100, 100)):
     return mask
 
 
-def _prediction(classes, masks, scores=None):
-    return Prediction(list(classes), np.array(scores or [0.9] * len(classes)), list(masks),
-                      [0.0] * len(classes), [None] * len(classes))
+def _evaluate(name, truth_classes, truth_masks, classes, masks, scores=None):
+    """``evaluate_image`` of detections of ``classes`` with ``masks`` (full frame) and ``scores`` (default 0.9)."""
+    detections = [Detection.from_mask(c, s, m) for c, s, m in zip(classes, scores or [0.9] * len(classes), masks)]
+    shape = (truth_masks or masks or [np.zeros((100, 100), bool)])[0].shape
+    return evaluate_image(name, truth_classes, truth_masks, [None] * len(truth_classes), detections, shape, False)
 
 
 def test_perfect_predictions_score_one():
     masks = [_rectangle(10), _rectangle(50)]
-    image = evaluate_image("a.jpg", ["bp", "pg"], masks, [None, None], _prediction(["bp", "pg"], masks))
+    image = _evaluate("a.jpg", ["bp", "pg"], masks, ["bp", "pg"], masks)
     counts = totals([image], 0.5)
     assert counts == {"tp": 2, "fp": 0, "fn": 0, "tn": 0}
     assert precision_recall(counts)[:2] == (1.0, 1.0)
@@ -319,16 +322,16 @@ def test_perfect_predictions_score_one():
 def test_shifted_masks_give_the_hand_computed_iou():
     truth = [_rectangle(10)]
     # Shifted 2 px: intersection 8x40, union 12x40 -> IoU 2/3, still a true positive.
-    near = evaluate_image("a.jpg", ["py"], truth, [None], _prediction(["py"], [_rectangle(12)]))
+    near = _evaluate("a.jpg", ["py"], truth, ["py"], [_rectangle(12)])
     assert near.overlap[0, 0] == pytest.approx(2 / 3) and near.counts(0.5)["tp"] == 1
     # Shifted 6 px: 4x40 over 16x40 -> 0.25: one false positive and one false negative.
-    far = evaluate_image("a.jpg", ["py"], truth, [None], _prediction(["py"], [_rectangle(16)]))
+    far = _evaluate("a.jpg", ["py"], truth, ["py"], [_rectangle(16)])
     assert far.overlap[0, 0] == pytest.approx(0.25) and far.counts(0.5) == {"tp": 0, "fp": 1, "fn": 1, "tn": 0}
     # Right place, wrong class: not a match.
-    wrong = evaluate_image("a.jpg", ["py"], truth, [None], _prediction(["yp"], truth))
+    wrong = _evaluate("a.jpg", ["py"], truth, ["yp"], truth)
     assert wrong.counts(0.5) == {"tp": 0, "fp": 1, "fn": 1, "tn": 0}
     # Below the threshold a detection does not count at all.
-    low = evaluate_image("a.jpg", ["py"], truth, [None], _prediction(["py"], truth, [0.3]))
+    low = _evaluate("a.jpg", ["py"], truth, ["py"], truth, [0.3])
     assert low.counts(0.5) == {"tp": 0, "fp": 0, "fn": 1, "tn": 0}
 
 
@@ -337,7 +340,7 @@ def test_recall_by_width_puts_each_label_in_the_bin_of_its_width():
     shape = (200, 640)
     masks = [_rectangle(10 + 150 * i, width=w, height=120, shape=shape) for i, w in enumerate(widths)]
     found = [masks[1], masks[3]]
-    image = evaluate_image("a.jpg", ["bp"] * 4, masks, [None] * 4, _prediction(["bp", "bp"], found))
+    image = _evaluate("a.jpg", ["bp"] * 4, masks, ["bp", "bp"], found)
     rows = recall_by_width([image], 0.5)
     assert [row["width"] for row in rows] == width_bin_names() == ["< 10 px", "10-16 px", "16-32 px", "32-64 px",
                                                                    ">= 64 px"]
@@ -355,15 +358,14 @@ def test_label_width_is_measured_across_a_tilted_pole_and_scaled_to_a_640_px_fra
 
 
 def test_empty_images_without_detections_are_true_negatives():
-    images = [evaluate_image(f"{i}.jpg", [], [], [], _prediction([], [])) for i in range(5)]
+    images = [_evaluate(f"{i}.jpg", [], [], [], []) for i in range(5)]
     assert totals(images, 0.5) == {"tp": 0, "fp": 0, "fn": 0, "tn": 5}
 
 
 def test_confusion_matrix_separates_swaps_duplicates_and_misses():
     left, middle, right = _rectangle(10), _rectangle(50), _rectangle(90)
-    image = evaluate_image("a.jpg", ["bp", "pg", "py"], [left, middle, right], [None] * 3,
-                           _prediction(["bp", "gp", "pb", "yp"], [left, left, middle, _rectangle(70)],
-                                       [0.9, 0.8, 0.7, 0.6]))
+    image = _evaluate("a.jpg", ["bp", "pg", "py"], [left, middle, right], ["bp", "gp", "pb", "yp"],
+                      [left, left, middle, _rectangle(70)], [0.9, 0.8, 0.7, 0.6])
     result = outcome(image, 0.5)
     assert (result.matches, result.swaps, result.duplicates, result.strays, result.missed) == \
         ([(0, 0)], [(2, 1)], [1], [3], [2])

@@ -16,7 +16,8 @@ from detector.model_files import ultralytics_predict
 from export.verify import compare, frontend_predict
 from naoslam.camera import CameraPose
 from naoslam.colour_filter import ColourFilter
-from naoslam.detector import Detection, LandmarkDetector, Letterbox, RotatedBox, _mask_in_box
+from naoslam.detections import Detection, RotatedBox
+from naoslam.detector import LandmarkDetector, Letterbox, _mask_in_box
 from naoslam.frames import bgr_frame
 
 
@@ -59,6 +60,33 @@ def test_detections_are_complete(tiny_onnx, synth_dataset):
             assert x1 - 1 <= d.centre_column <= x2 + 1
 
 
+def test_the_colour_filter_and_the_onnx_model_give_the_same_type(tiny_onnx, synth_dataset):
+    """One detection type for every front end: the fields a measurement, an evaluation or an overlay reads are
+    there whoever found the pole; the colour filter adds its band centres."""
+    colour_filter = ColourFilter()
+    frame = next(f for f in _frames(synth_dataset, 20) if colour_filter(f))
+    by_colour, by_model = colour_filter(frame), LandmarkDetector(tiny_onnx, conf=0.001)(frame)
+    assert by_model and {type(d) for d in by_colour} == {type(d) for d in by_model} == {Detection}
+    for d in by_colour:
+        upper, lower = d.band_centres
+        assert d.divide_centre == pytest.approx(((upper[0] + lower[0]) / 2, (upper[1] + lower[1]) / 2))
+        assert d.band_distance_px == pytest.approx(np.hypot(upper[0] - lower[0], upper[1] - lower[1]))
+        assert d.centre_column == pytest.approx(d.divide_centre[0]) and d.rotated_box is not None
+        assert d.full_mask(frame.shape).sum() == d.mask.sum() > 0
+    assert all(d.band_centres is None and d.band_distance_px is None for d in by_model)
+
+
+def test_a_detection_from_a_full_mask_is_cropped_to_it_and_measures_its_overlap():
+    mask = np.zeros((60, 80), bool)
+    mask[10:50, 20:30] = True
+    detection = Detection.from_mask("pg", 0.7, mask)
+    assert detection.class_id == 4 and detection.box == (20.0, 10.0, 30.0, 50.0) and detection.mask.shape == (40, 10)
+    assert np.array_equal(detection.full_mask(mask.shape), mask) and detection.centre_column == pytest.approx(25.0)
+    shifted = np.roll(mask, 5, axis=1)  # 5 of 10 columns overlap: IoU 5 / 15
+    assert detection.mask_iou(Detection.from_mask("pg", 0.7, shifted)) == pytest.approx(1 / 3)
+    assert Detection.from_mask("pg", 0.7, np.zeros((60, 80), bool)).mask_iou(detection) == 0.0
+
+
 def test_mask_is_sampled_at_full_resolution_inside_the_box():
     """With no letterbox, the in-box warp equals upsampling the whole logit map and cropping it."""
     rng = np.random.default_rng(0)
@@ -88,8 +116,8 @@ def test_grey_frame_gives_what_ultralytics_gives(tiny_onnx):
     grey = np.full((240, 320, 3), 128, np.uint8)
     ours = LandmarkDetector(tiny_onnx, conf=0.001)(grey)
     reference = ultralytics_predict(tiny_onnx, [grey], (96, 128), conf=0.001)[0]
-    assert len(ours) == len(reference.scores)
-    assert sorted(d.class_id for d in ours) == sorted(reference.class_ids.tolist())
+    assert len(ours) == len(reference)
+    assert sorted(d.class_id for d in ours) == sorted(d.class_id for d in reference)
 
 
 def test_grey_and_four_channel_frames_are_accepted(tiny_onnx, synth_dataset):

@@ -13,7 +13,8 @@ from detector.synth.render import render_scene
 from detector.synth.scene import Scene, _lighting, _room
 from detector.synth.walk import render_walk, walk_camera_poses
 from naoslam.camera import CameraPose, PinholeCamera
-from naoslam.detector import Detection, LandmarkDetector, mask_centre_column, rotated_box_of_mask
+from naoslam.detections import Detection, mask_centre_column, rotated_box_of_mask
+from naoslam.detector import LandmarkDetector
 from naoslam.ground import GroundView
 from naoslam.landmarks import PoleGeometry
 from naoslam.measurement import MeasurementModel, PowerLaw, RangeCalibration

@@ -114,7 +114,7 @@ def test_run_export_fails_and_writes_nothing_when_onnx_disagrees(tiny_weights, s
     import export.run
 
     def shifted_boxes(model, frames, conf):
-        return [type(d)(d.class_ids, d.scores, d.boxes + 4.0, d.masks) for d in
+        return [[replace(d, box=tuple(v + 4.0 for v in d.box)) for d in found] for found in
                 export.run.ultralytics_predict(tiny_weights, frames, (96, 128), conf)]
 
     monkeypatch.setattr(export.run, "frontend_predict", shifted_boxes)

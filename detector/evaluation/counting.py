@@ -11,9 +11,8 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
-from detector.evaluation.predictors import Prediction
 from detector.matching import greedy_match, mask_iou
-from naoslam.detector import rotated_box_of_mask
+from naoslam.detections import Detection, rotated_box_of_mask
 
 MATCH_IOU = 0.5
 #: IoU thresholds of the COCO-style mAP50-95.
@@ -25,8 +24,8 @@ REFERENCE_FRAME_WIDTH_PX = 640
 
 @dataclass
 class ImageEvaluation:
-    """One image's labels, predictions and their pairwise overlaps, from which counts at any threshold follow.
-    Compact: no mask is kept (the prediction's are dropped once the overlaps are known), so memory does not grow
+    """One image's labels, detections and their pairwise overlaps, from which counts at any threshold follow.
+    Compact: no mask is kept (the detections' are dropped once the overlaps are known), so memory does not grow
     with the frames' size."""
 
     name: str
@@ -34,18 +33,24 @@ class ImageEvaluation:
     #: Each label's width (px at a 640 px frame width), for recall by width.
     truth_widths: list[float]
     truth: list[dict | None]
-    prediction: Prediction
+    #: The detections, best first, without their masks.
+    detections: list[Detection]
+    scores: np.ndarray
     overlap: np.ndarray
     same_class: np.ndarray
     point_matching: bool
 
+    @property
+    def classes(self) -> list[str]:
+        return [d.name for d in self.detections]
+
     def kept(self, conf: float) -> np.ndarray:
-        return np.flatnonzero(self.prediction.scores >= conf)
+        return np.flatnonzero(self.scores >= conf)
 
     def match(self, conf: float, iou: float = MATCH_IOU) -> list[tuple[int, int]]:
-        """(prediction, label) pairs among predictions scoring >= conf."""
+        """(detection, label) pairs among detections scoring >= conf."""
         kept = self.kept(conf)
-        pairs = greedy_match(self.overlap[kept], self.prediction.scores[kept], iou, self.same_class[kept])
+        pairs = greedy_match(self.overlap[kept], self.scores[kept], iou, self.same_class[kept])
         return [(int(kept[p]), r) for p, r in pairs]
 
     def counts(self, conf: float) -> dict[str, int]:
@@ -57,19 +62,22 @@ class ImageEvaluation:
 
 
 def evaluate_image(name: str, truth_classes: list[str], truth_masks: list[np.ndarray], truth: list[dict | None],
-                   prediction: Prediction) -> ImageEvaluation:
-    """Overlap (mask IoU, or point-in-label for the colour filter) between every prediction and label."""
-    same_class = np.array([[p == t for t in truth_classes] for p in prediction.classes], dtype=bool)
-    same_class = same_class.reshape(len(prediction.classes), len(truth_classes))
-    if prediction.points is not None:
+                   detections: list[Detection], frame_shape: tuple[int, ...], point_matching: bool) -> ImageEvaluation:
+    """Overlap between every detection and label: mask IoU, or with ``point_matching`` (the colour filter, whose
+    band mask is not the pole's outline) whether its band-dividing point lies in the label."""
+    same_class = np.array([[d.name == t for t in truth_classes] for d in detections], dtype=bool)
+    same_class = same_class.reshape(len(detections), len(truth_classes))
+    if point_matching:
         kernel = np.ones((2 * POINT_TOLERANCE_PX + 1,) * 2, np.uint8)
         grown = [cv2.dilate(m.astype(np.uint8), kernel) > 0 for m in truth_masks]
-        overlap = np.array([[_inside(point, g) for g in grown] for point in prediction.points], dtype=float)
-        overlap = overlap.reshape(len(prediction.points), len(truth_masks))
+        overlap = np.array([[_inside(d.divide_centre, g) for g in grown] for d in detections], dtype=float)
     else:
-        overlap = mask_iou(prediction.masks, truth_masks)
+        overlap = mask_iou([d.full_mask(frame_shape) for d in detections], truth_masks)
+    overlap = overlap.reshape(len(detections), len(truth_masks))
     return ImageEvaluation(name, truth_classes, [label_width_px(m) for m in truth_masks], truth,
-                           replace(prediction, masks=[]), overlap, same_class, prediction.points is not None)
+                           [replace(d, mask=np.zeros((0, 0), bool)) for d in detections],
+                           np.array([d.confidence for d in detections], dtype=float), overlap, same_class,
+                           point_matching)
 
 
 def label_width_px(mask: np.ndarray) -> float:
@@ -122,7 +130,7 @@ def outcome(image: ImageEvaluation, conf: float) -> Outcome:
     taken_p, taken_r = {p for p, _ in matches}, {r for _, r in matches}
     left_p = np.array([p for p in image.kept(conf) if p not in taken_p], dtype=int)
     left_r = np.array([r for r in range(len(image.truth_classes)) if r not in taken_r], dtype=int)
-    pairs = greedy_match(image.overlap[np.ix_(left_p, left_r)], image.prediction.scores[left_p], MATCH_IOU)
+    pairs = greedy_match(image.overlap[np.ix_(left_p, left_r)], image.scores[left_p], MATCH_IOU)
     swaps = [(int(left_p[i]), int(left_r[j])) for i, j in pairs]
     swapped_p, swapped_r = {p for p, _ in swaps}, {r for _, r in swaps}
     rest = [int(p) for p in left_p if p not in swapped_p]
@@ -142,7 +150,7 @@ def confusion_matrix(images: list[ImageEvaluation], outcomes: list[Outcome], cla
     none = len(classes)
     matrix = np.zeros((none + 1, none + 1), dtype=int)
     for image, result in zip(images, outcomes, strict=True):
-        truth, detected = image.truth_classes, image.prediction.classes
+        truth, detected = image.truth_classes, image.classes
         for p, r in result.matches + result.swaps:
             matrix[classes.index(truth[r]), classes.index(detected[p])] += 1
         for p in result.duplicates + result.strays:
@@ -178,14 +186,14 @@ def map_scores(images: list[ImageEvaluation], classes: tuple[str, ...]) -> dict[
 
     tp_rows, conf, pred_cls, target_cls = [], [], [], []
     for image in images:
-        n = len(image.prediction.classes)
+        n = len(image.detections)
         tp = np.zeros((n, len(MAP_THRESHOLDS)), dtype=bool)
         for k, threshold in enumerate(MAP_THRESHOLDS):
             for p, _ in image.match(0.0, float(threshold)):
                 tp[p, k] = True
         tp_rows.append(tp)
-        conf.extend(image.prediction.scores.tolist())
-        pred_cls.extend(classes.index(c) for c in image.prediction.classes)
+        conf.extend(image.scores.tolist())
+        pred_cls.extend(classes.index(c) for c in image.classes)
         target_cls.extend(classes.index(c) for c in image.truth_classes)
     if not target_cls:
         return None

@@ -12,6 +12,7 @@ from detector.evaluation.counting import ImageEvaluation, best_threshold
 from detector.figures import plt, save_figure
 from detector.preview import draw_label
 from detector.atomic import write_bytes
+from naoslam.detections import Detection
 
 COUNT_COLOURS = {"tp": "#2ca02c", "fp": "#d62728", "fn": "#ff7f0e", "tn": "#1f77b4"}
 #: BGR colours of the overlays: matched detections, false positives, missed labels.
@@ -103,10 +104,10 @@ def _outline(image: np.ndarray, mask: np.ndarray, colour, text: str) -> None:
         draw_label(image, text, (x, max(12, y - 4)), colour)
 
 
-def write_overlay(image: ImageEvaluation, frame: np.ndarray, masks: list[np.ndarray], truth_masks: list[np.ndarray],
-                  conf: float, folder: Path) -> bool:
+def write_overlay(image: ImageEvaluation, frame: np.ndarray, detections: list[Detection],
+                  truth_masks: list[np.ndarray], conf: float, folder: Path) -> bool:
     """``folder/<image>.jpg`` when the image has a false positive or a false negative at ``conf``: the frame with
-    found, wrong and missed poles outlined (``masks``: the prediction's, ``truth_masks``: the labels'). Returns
+    found, wrong and missed poles outlined (``detections`` with their masks, ``truth_masks``: the labels'). Returns
     whether it was written."""
     counts = image.counts(conf)
     if not counts["fp"] and not counts["fn"]:
@@ -114,12 +115,11 @@ def write_overlay(image: ImageEvaluation, frame: np.ndarray, masks: list[np.ndar
     frame = frame.copy()
     pairs = image.match(conf)
     matched_p, matched_r = {p for p, _ in pairs}, {r for _, r in pairs}
-    pred = image.prediction
     for p in image.kept(conf):
-        colour = TP_BGR if p in matched_p else FP_BGR
-        _outline(frame, masks[p], colour, f"{pred.classes[p]} {pred.scores[p]:.2f}")
-        if pred.points is not None:
-            cv2.drawMarker(frame, tuple(int(v) for v in pred.points[p]), colour, cv2.MARKER_CROSS, 12, 2)
+        colour, detection = TP_BGR if p in matched_p else FP_BGR, detections[p]
+        _outline(frame, detection.full_mask(frame.shape), colour, f"{detection.name} {detection.confidence:.2f}")
+        if detection.band_centres is not None:
+            cv2.drawMarker(frame, tuple(int(v) for v in detection.divide_centre), colour, cv2.MARKER_CROSS, 12, 2)
     for r, (cls, mask) in enumerate(zip(image.truth_classes, truth_masks)):
         if r not in matched_r:
             _outline(frame, mask, FN_BGR, f"missed {cls}")

@@ -1,32 +1,20 @@
-"""The three kinds of front end ``poles evaluate`` compares, behind one interface: frame -> Prediction."""
+"""The three kinds of front end ``poles evaluate`` compares, behind one interface: frame -> detections
+(``naoslam.detections.Detection``, best first)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from detector.model_files import read_checkpoint, run_checkpoint
 from naoslam.colour_filter import ColourFilter
-from naoslam.detector import LandmarkDetector, mask_centre_column, rotated_box_of_mask, shipped_calibration
+from naoslam.detections import Detection
+from naoslam.detector import LandmarkDetector, shipped_calibration
 from naoslam.measurement import RangeCalibration
 from naoslam.shipped import resolve_model
 
 #: Lowest confidence kept, so that the precision/recall sweep and mAP see every detection.
 SWEEP_CONF = 0.01
-
-
-@dataclass
-class Prediction:
-    """Detections in one frame, best first. ``points`` (colour filter) stand in for masks when matching."""
-
-    classes: list[str]
-    scores: np.ndarray
-    masks: list[np.ndarray]
-    centre_columns: list[float]
-    sizes: list[tuple[float, float] | None]
-    points: list[tuple[float, float]] | None = None
-    band_distances: list[float] | None = None
 
 
 class Predictor:
@@ -36,8 +24,10 @@ class Predictor:
     calibration: RangeCalibration | None = None
     #: The confidence threshold the front end is meant to run at (stored in the model), if it has one.
     operating_conf: float | None = None
+    #: Whether a detection is matched to a label by its band-dividing point (the colour filter) or by its mask.
+    point_matching: bool = False
 
-    def __call__(self, frame: np.ndarray) -> Prediction:
+    def __call__(self, frame: np.ndarray) -> list[Detection]:
         raise NotImplementedError
 
 
@@ -54,11 +44,8 @@ class OnnxPredictor(Predictor):
                             else self.detector.usable_calibration)
         self.operating_conf = self.detector.stored_conf
 
-    def __call__(self, frame: np.ndarray) -> Prediction:
-        found = self.detector(frame)
-        return Prediction([d.name for d in found], np.array([d.confidence for d in found]),
-                          [d.full_mask(frame.shape) for d in found], [d.centre_column for d in found],
-                          [(d.rotated_box.width, d.rotated_box.height) if d.rotated_box else None for d in found])
+    def __call__(self, frame: np.ndarray) -> list[Detection]:
+        return self.detector(frame)
 
 
 class TorchPredictor(Predictor):
@@ -74,15 +61,10 @@ class TorchPredictor(Predictor):
         self.imgsz = imgsz
         self.name = Path(path).name
 
-    def __call__(self, frame: np.ndarray) -> Prediction:
+    def __call__(self, frame: np.ndarray) -> list[Detection]:
         from detector.model_files import ultralytics_frame
 
-        found = ultralytics_frame(self.model, frame, self.imgsz, SWEEP_CONF)
-        masks = list(found.masks)
-        boxes = [rotated_box_of_mask(m) for m in masks]
-        return Prediction([self.model.names[int(c)] for c in found.class_ids], found.scores, masks,
-                          [mask_centre_column(m) if m.any() else 0.0 for m in masks],
-                          [(b.width, b.height) if b else None for b in boxes])
+        return ultralytics_frame(self.model, frame, self.imgsz, SWEEP_CONF)
 
 
 class ColourFilterPredictor(Predictor):
@@ -90,16 +72,14 @@ class ColourFilterPredictor(Predictor):
     Ranges come from ``calibration``'s colour law, else from the shipped model's (the colour filter's on the Nao)."""
 
     name = "colour-filter"
+    point_matching = True
 
     def __init__(self, calibration: RangeCalibration | None = None):
         self.filter = ColourFilter()
         self.calibration = calibration if calibration is not None else shipped_calibration()
 
-    def __call__(self, frame: np.ndarray) -> Prediction:
-        found = self.filter(frame)
-        return Prediction([d.name for d in found], np.ones(len(found)), [d.mask for d in found],
-                          [d.centre_column for d in found], [None] * len(found),
-                          points=[d.divide_centre for d in found], band_distances=[d.band_distance_px for d in found])
+    def __call__(self, frame: np.ndarray) -> list[Detection]:
+        return self.filter(frame)
 
 
 def make_predictor(model: str, imgsz: int | None = None, calibration: RangeCalibration | None = None) -> Predictor:

@@ -21,7 +21,8 @@ from detector.evaluation.predictors import ColourFilterPredictor, Predictor
 from detector.atomic import write_json
 from naoslam.camera import NAO_HFOV_DEG
 from naoslam.landmarks import CLASSES
-from naoslam.measurement import bearing_of_column
+from naoslam.detections import Detection
+from naoslam.measurement import RangeCalibration, bearing_of_column
 
 
 def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", conf: float = 0.5,
@@ -43,9 +44,10 @@ def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", c
         h, w = frame.shape[:2]
         masks = [polygon_to_mask(inst.pixels(w, h), w, h) for inst in sample.instances]
         entries = truth.get(sample.image.name) or [None] * len(sample.instances)
-        prediction = predictor(frame)
-        image = evaluate_image(sample.image.name, [i.cls for i in sample.instances], masks, entries, prediction)
-        written += write_overlay(image, frame, prediction.masks, masks, conf, overlays)
+        detections = predictor(frame)
+        image = evaluate_image(sample.image.name, [i.cls for i in sample.instances], masks, entries, detections,
+                               frame.shape, predictor.point_matching)
+        written += write_overlay(image, frame, detections, masks, conf, overlays)
         images.append(image)
     counts = totals(images, conf)
     precision, recall, f1 = precision_recall(counts)
@@ -93,22 +95,22 @@ def _measurement_errors(images: list[ImageEvaluation], conf: float, predictor: P
     range_err, bearing_err, pixel_err = [], [], []
     calibration = predictor.calibration
     for image in images:
-        pred = image.prediction
         for p, r in image.match(conf):
+            detection = image.detections[p]
             truth = image.truth[r] if r < len(image.truth) else None
             if not truth:
                 continue
             width = truth.get("image_width") or 640
             if truth.get("bearing_rad") is not None:
                 hfov = calibration.hfov_deg if calibration else NAO_HFOV_DEG
-                bearing_err.append(math.degrees(bearing_of_column(pred.centre_columns[p], width, hfov)
+                bearing_err.append(math.degrees(bearing_of_column(detection.centre_column, width, hfov)
                                                 - truth["bearing_rad"]))
             if truth.get("range_m") is not None and calibration is not None:
-                estimate = _range(pred, p, calibration, width)
+                estimate = _range(detection, calibration, width)
                 if estimate is not None:
                     range_err.append(estimate - truth["range_m"])
-            if pred.points is not None and truth.get("band_divide_centre_px"):
-                pixel_err.append(math.dist(pred.points[p], truth["band_divide_centre_px"]))
+            if detection.band_centres is not None and truth.get("band_divide_centre_px"):
+                pixel_err.append(math.dist(detection.divide_centre, truth["band_divide_centre_px"]))
     out = {}
     if range_err:
         out["range_error"] = _stats(range_err)
@@ -119,14 +121,18 @@ def _measurement_errors(images: list[ImageEvaluation], conf: float, predictor: P
     return out
 
 
-def _range(pred, p: int, calibration, image_width: int) -> float | None:
-    if pred.band_distances is not None:
+def _range(detection: Detection, calibration: RangeCalibration, image_width: int) -> float | None:
+    """The range the detection measures: the colour filter's from its band distance, a model's from its rotated box
+    (None where the calibration has no law for it or the mask is empty)."""
+    column = detection.centre_column
+    if detection.band_centres is not None:
         if calibration.colour_law is None:
             return None
-        return calibration.colour_range(pred.band_distances[p], image_width, column=pred.centre_columns[p])[0]
-    if pred.sizes[p] is None:
+        return calibration.colour_range(detection.band_distance_px, image_width, column=column)[0]
+    if detection.rotated_box is None:
         return None
-    return calibration.range_from_box(*pred.sizes[p], image_width, column=pred.centre_columns[p])[0]
+    box = detection.rotated_box
+    return calibration.range_from_box(box.width, box.height, image_width, column=column)[0]
 
 
 def _width_recall(m: dict, index: int) -> str:
