@@ -16,6 +16,7 @@ from detector.model_files import load_calibration
 from calibration.samples import measure_samples, open_ranged
 from detector.cli import main
 from detector.datasets import load_dataset
+from detector.datasets.io import OUTPUT_MARKER
 from detector.datasets.truth import load_truth
 from detector.evaluation.by_width import label_width_px, recall_by_width, width_bin_names
 from detector.evaluation.counting import (best_threshold, confusion_matrix, evaluate_image, outcome, precision_recall,
@@ -410,6 +411,7 @@ def test_evaluate_keeps_a_used_out_and_force_replaces_it_whole(synth_dataset, tm
     out = tmp_path / "eval"
     (out / "errors").mkdir(parents=True)
     (out / "errors" / "old-model_fp.jpg").write_bytes(b"yesterday's overlay")
+    (out / OUTPUT_MARKER).write_text("an earlier evaluation's")
     argv = ["evaluate", str(synth_dataset), "--model", "colour-filter", "--out", str(out)]
     assert main(argv) == 2
     assert "--force" in capsys.readouterr().err
@@ -509,7 +511,7 @@ def test_evaluate_keeps_models_of_the_same_file_name_apart(synth_dataset, tiny_o
     assert main(["evaluate", str(synth_dataset), "--model", str(tmp_path / "a" / "best.onnx"), "--model",
                  str(tmp_path / "b" / "best.onnx"), "--model", "colour-filter", "--model", "colour-filter",
                  "--out", str(out)]) == 0
-    folders = sorted(p.name for p in out.iterdir())
+    folders = sorted(p.name for p in out.iterdir() if p.is_dir())
     assert folders == ["a_best.onnx", "b_best.onnx", "colour-filter", "colour-filter-2"]
     assert [json.loads((out / f / "metrics.json").read_text())["model"] for f in folders] == folders
 

@@ -109,8 +109,9 @@ def sample_scene(rng: np.random.Generator, camera: PinholeCamera, config: SceneC
         lean = None
         if rng.random() < config.p_lean:
             lean = tilt_rotation(math.radians(rng.uniform(2, config.max_lean_deg)), rng.uniform(-math.pi, math.pi))
+        code = str(rng.choice(CLASSES))  # before the paint: drawing in another order would change every seed's frames
         paint = dict(config.team_paint) if team_paint else config.paint.draw(rng) if vary_paint else BAND_RGB
-        scene.cylinders.append(pole(str(rng.choice(CLASSES)), *spot, config.pole, lean, paint=paint))
+        scene.cylinders.append(pole(code, *spot, config.pole, lean, paint=paint))
     for _ in range(int(rng.integers(0, config.max_distractors + 1))):
         spot = _free_spot(rng, pose, camera, config, occupied, floor, config.range_m)
         if spot is not None:
