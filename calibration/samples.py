@@ -55,7 +55,12 @@ def open_ranged(data: Path, truth_csv: Path | None = None, progress: bool = True
     dataset = open_dataset(data, progress=progress)
     truth = load_truth(dataset, truth_csv)
     if not any(t and t.get("range_m") is not None for entries in truth.values() for t in entries):
-        raise ValueError(f"{data}: no landmark has a true range - add annotations.json (`poles synth "
+        annotations = dataset.root / "annotations.json"
+        if truth_csv is None and annotations.is_file():
+            raise ValueError(f"{annotations}: no landmark in it has a true range (`poles synth` writes `images` -> "
+                             "each image's `landmarks`, in label order, each with `range_m`) - write it in that "
+                             "layout, or pass --truth image,class,range_m CSV")
+        raise ValueError(f"{truth_csv or data}: no landmark has a true range - add annotations.json (`poles synth "
                          "--calibration-shots` and `--walk` write one) or, for --data, pass --truth "
                          "image,class,range_m CSV")
     return RangedDataset(dataset, truth)

@@ -22,6 +22,7 @@ import yaml
 
 from detector.cli import main
 from detector.datasets import load_dataset
+from detector.datasets.io import OUTPUT_MARKER
 
 
 def tree_hash(root: Path) -> str:
@@ -246,6 +247,17 @@ def _calibrate_truth(row: str, named: str) -> Callable:
     return build
 
 
+def _calibrate_at_one_range(tmp: Path, data: Path):
+    """`poles calibrate --truth` whose rows put every pole at 2 m (one row per image's only pole of a class)."""
+    rows = []
+    for sample in load_dataset(data).samples:
+        classes = [i.cls for i in sample.instances]
+        rows += [f"{sample.image.name},{cls},2.0" for cls in dict.fromkeys(classes) if classes.count(cls) == 1]
+    csv_path = _truth_csv(tmp, "image,class,range_m\n" + "\n".join(rows) + "\n")
+    return (["calibrate", "--data", str(data), "--truth", str(csv_path), "--out", str(tmp / "out")], tmp,
+            "ranges.csv: every pole measured stands at 2 m")
+
+
 def _annotations_with_range(value: float) -> Callable:
     """`poles calibrate` on a dataset whose annotations.json gives one landmark the range ``value``."""
     def build(tmp: Path, data: Path):
@@ -257,6 +269,12 @@ def _annotations_with_range(value: float) -> Callable:
         return ["calibrate", "--data", str(data), "--out", str(tmp / "out")], data, "annotations.json: "
 
     return build
+
+
+def _annotations_of_another_shape(tmp: Path, data: Path):
+    """`poles calibrate` on a dataset whose annotations.json is a list, not ``images`` -> ``landmarks``."""
+    (data / "annotations.json").write_text(json.dumps([{"file": "a.jpg", "distance": 2.0}]))
+    return ["calibrate", "--data", str(data), "--out", str(tmp / "out")], data, "annotations.json: no landmark in it"
 
 
 def _detection_checkpoint(tmp: Path) -> Path:
@@ -467,9 +485,9 @@ OTHER_CASES = [
     _plain("calibrate: range inf", _calibrate_truth("{image},{cls},inf", "ranges.csv:2")),
     _plain("calibrate: annotations.json with a NaN range", _annotations_with_range(float("nan"))),
     _plain("calibrate: annotations.json with a negative range", _annotations_with_range(-2.0)),
+    _plain("calibrate: annotations.json of another shape", _annotations_of_another_shape),
     _plain("calibrate: range 0", _calibrate_truth("{image},{cls},0", "ranges.csv:2")),
-    _plain("calibrate: every pole at one range", _calibrate_truth("{image},{cls},2.0",
-                                                                  "ranges.csv: every pole measured stands at 2 m")),
+    _plain("calibrate: every pole at one range", _calibrate_at_one_range),
     _plain("calibrate: range not a number", _calibrate_truth("{image},{cls},far", "ranges.csv:2")),
     _plain("calibrate: unknown class", _calibrate_truth("{image},ball,1.0", "ranges.csv:2")),
     _plain("calibrate: a row without its range", _calibrate_truth("{image}", "ranges.csv:2: no value for class, "
@@ -636,6 +654,7 @@ def test_force_replaces_an_earlier_output_but_never_a_folder_of_the_users_own(co
     earlier output: replaced."""
     argv = {"synth": ["synth", "--images", "2", "--workers", "1"], "convert": ["convert", str(dataset_copy)]}[command]
     users = Path(shutil.copytree(dataset_copy, tmp_path / "mydocs"))
+    (users / OUTPUT_MARKER).unlink()  # rendered here, but a user's own from now on
     before = tree_hash(users)
     assert main(argv + ["--out", str(users), "--force"]) == 2
     err = capsys.readouterr().err
@@ -654,3 +673,14 @@ def test_an_export_one_folder_down_is_pointed_at(dataset_copy, tmp_path, capsys)
     assert main(["check", str(parent)]) == 1
     out = capsys.readouterr().out
     assert "one folder down" in out and str(parent / "poles-v3") in out
+
+
+def test_the_rename_advice_leads_a_flood_of_per_line_errors(dataset_copy, capsys):
+    """Thousands of broken lines once hid the one line that matters: a class that names no pole, and --rename."""
+    set_yaml(dataset_copy, names=["ball", "gp", "yp", "pb", "pg", "py"])
+    for label in sorted((dataset_copy / "train" / "labels").glob("*.txt")):
+        label.write_text(label.read_text() + "".join("7 0.1 0.1 0.2\n" for _ in range(5)))
+    assert main(["split", str(dataset_copy), "--out", str(dataset_copy.parent / "out")]) == 2
+    err = capsys.readouterr().err
+    shown = err.split("problem(s) in the dataset:", 1)[1].splitlines()
+    assert "--rename" in shown[1] and "'ball'" in shown[1], shown[:3]

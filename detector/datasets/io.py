@@ -146,8 +146,8 @@ def _load_yolo(yaml_path: Path, renames: dict[str, str] | None) -> Dataset:
                                         f"the {split} split is empty", f"create {split}/images or fix the path"))
             continue
         samples += _read_split(split, images_dir, names, problems, unknown_uses)
-    if None in names:
-        problems += unknown_class_problems(yaml_path, raw_names, names, unknown_uses)
+    if None in names:  # first: the one line with the --rename advice must not sink under per-file problems
+        problems[:0] = unknown_class_problems(yaml_path, raw_names, names, unknown_uses)
     problems += _duplicate_stems(samples)
     return Dataset(root, samples, problems, (base,) if base != root else ())
 
