@@ -187,3 +187,26 @@ def test_the_recipe_refuses_a_share_that_leaves_no_frame_of_yours_and_shares_the
     recipe = FinetuneRecipe(minutes=15)
     assert recipe.training_minutes(1.0) == pytest.approx(14.0 - recipe.after_training_minutes)
     assert FinetuneRecipe(minutes=0.3).training_minutes(5.0) == 0.3
+
+
+def test_training_interrupted_after_an_epoch_resumes_from_it(export, tmp_path, monkeypatch):
+    """Ctrl-C during training keeps the stages before it and the epochs done; the rerun continues from last.pt."""
+    from detector.training import train as training
+
+    real_train, calls = training._train, []
+
+    def interrupted_after_one_epoch(model, tuner, **options):
+        calls.append(options.get("resume", False))
+        if len(calls) == 1:
+            def stop(trainer):
+                raise KeyboardInterrupt
+            model.add_callback("on_model_save", stop)
+        real_train(model, tuner, **options)
+
+    monkeypatch.setattr(training, "_train", interrupted_after_one_epoch)
+    with pytest.raises(KeyboardInterrupt):
+        run_finetune(export, tmp_path / "run", TINY)
+    assert (tmp_path / "run" / "train" / "weights" / "last.pt").is_file()
+    results = run_finetune(export, tmp_path / "run", TINY)
+    assert calls == [False, True]  # the second call resumed the first run
+    assert results["train"]["epochs"] >= 2 and (tmp_path / "run" / "models" / "poles-finetuned.onnx").is_file()
