@@ -60,6 +60,19 @@ class StageLedger:
                 self.records[name] = StageRecord(**{**data, "ran": False})
         self.order: list[str] = []
 
+    @classmethod
+    def check_folder(cls, out: Path, command: str) -> None:
+        """Refuse an ``out`` that is a file or a folder holding files of its own: a resumable run writes, and on a
+        rerun replaces, folders inside it. A new or empty folder starts a run of ``command``; an earlier run's (with
+        its ledger) resumes."""
+        if out.is_dir() and (out / cls.FILE_NAME).is_file():
+            return
+        entries = sorted(entry.name for entry in out.iterdir()) if out.is_dir() else []
+        if out.exists() and (not out.is_dir() or entries):
+            held = f"holds {', '.join(entries[:3])}{' ...' if len(entries) > 3 else ''}" if entries else "is a file"
+            raise ValueError(f"--out {out} {held}, not an earlier {command}'s - give a new or empty folder (or an "
+                             f"earlier {command}'s to resume it); nothing was written")
+
     def previous(self, name: str) -> StageRecord | None:
         return self.records.get(name)
 

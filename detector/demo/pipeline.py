@@ -74,7 +74,7 @@ BUDGETS = {
 def run_demo(out: Path, budget: Budget, seed: int = 0) -> int:
     """Run every stage into ``out``; returns a process exit code."""
     out = Path(out)
-    _check_demo_folder(out)
+    StageLedger.check_folder(out, "demo")
     out.mkdir(parents=True, exist_ok=True)
     ledger = StageLedger(out, announce=lambda text: console.rule(f"[bold]{text}", align="left"))
     console.print(f"[bold]poles demo[/bold] ({budget.name} budget) into {out}: "
@@ -89,18 +89,6 @@ def run_demo(out: Path, budget: Budget, seed: int = 0) -> int:
     _print_headlines(results)
     console.print(f"report: {results['report']['html']}")
     return 0
-
-
-def _check_demo_folder(out: Path) -> None:
-    """Refuse an ``out`` that is a file or a folder holding files of its own: the demo writes, and on a rerun
-    replaces, folders inside it. A new or empty folder starts a demo; an earlier demo's (with its ledger) resumes."""
-    if out.is_dir() and (out / StageLedger.FILE_NAME).is_file():
-        return
-    entries = sorted(entry.name for entry in out.iterdir()) if out.is_dir() else []
-    if out.exists() and (not out.is_dir() or entries):
-        held = f"holds {', '.join(entries[:3])}{' ...' if len(entries) > 3 else ''}" if entries else "is a file"
-        raise ValueError(f"--out {out} {held}, not an earlier demo's - give a new or empty folder (or an earlier "
-                         "demo's to resume it); nothing was written")
 
 
 def _stages(ledger: StageLedger, out: Path, budget: Budget, seed: int) -> dict:

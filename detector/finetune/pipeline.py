@@ -48,17 +48,12 @@ def run_finetune(export: Path, out: Path, recipe: FinetuneRecipe, renames: dict[
 
 
 def _check_run_folder(out: Path, export: Path) -> None:
-    """Refuse an ``out`` that is a file, holds other files than an earlier fine-tune's, or lies in the export."""
+    """Refuse an ``out`` that overlaps the export, or is not a new, empty or earlier fine-tune's folder."""
     resolved, source = out.resolve(), export.resolve()
     if resolved == source or source in resolved.parents or resolved in source.parents:
         raise ValueError(f"--out {out} overlaps the export {export}: the export is only read - give a folder "
                          "outside it")
-    if out.is_dir() and (out / StageLedger.FILE_NAME).is_file():
-        return
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise ValueError(f"--out {out} {'is a file' if not out.is_dir() else 'holds other files'}, not an earlier "
-                         "fine-tune's - give a new or empty folder (or an earlier fine-tune's to resume it); nothing "
-                         "was written")
+    StageLedger.check_folder(out, "fine-tune")
 
 
 def _export_fingerprint(export: Path) -> str:
@@ -208,11 +203,12 @@ def _export_model(weights: Path, model: Path, data: Path, mixed: Path, recipe: F
                                   force=True, dynamic=start.dynamic))
     written = [model, int8_path(model)] if start.int8 else [model]
     stamp = _starting_metadata(recipe)
-    calibrated = stamp["calibration"].get("input_width") == report["input_hw"][1]
+    measured_at = stamp["calibration"].get("input_width")
+    calibrated = measured_at == report["input_hw"][1]
     if not calibrated:
         stamp = {key: value for key, value in stamp.items() if key != "calibration"}
         console.print(f"[yellow]no range calibration in {model}: the shipped one was measured at "
-                      f"{_starting_metadata(recipe)['calibration'].get('input_width')} px input, this model runs at "
+                      f"{measured_at} px input, this model runs at "
                       f"{report['input_hw'][1]} - run `poles calibrate --model {model} --embed {model}`")
     for path in written:
         add_metadata(path, **stamp)
