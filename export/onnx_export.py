@@ -32,12 +32,12 @@ def export_onnx(weights: Path, out: Path, input_hw: tuple[int, int] = NAO_INPUT_
 
     ``input_hw`` is the full frame's input size, each side a multiple of the model's stride. ``dynamic`` lets the
     input height and width vary (multiples of the stride), so the front end can run the network on the band below
-    the horizon alone (``LandmarkDetector``'s crop). Nearest upsampling is exported as ``NearestUpsample2x`` so that
-    the graph compiles at the Nao's instruction set.
+    the horizon alone (``LandmarkDetector``'s crop). The network is rewritten for the Nao's instruction set first
+    (``export.atom_graph``: the same values from operators that compile and run fast at SSE4.1).
     """
     from ultralytics import YOLO
 
-    from export.upsampling import replace_nearest_upsampling
+    from export.atom_graph import rewrite_for_atom
 
     weights, out = Path(weights), Path(out)
     if not weights.is_file():
@@ -53,7 +53,7 @@ def export_onnx(weights: Path, out: Path, input_hw: tuple[int, int] = NAO_INPUT_
         if any(side % stride for side in input_hw):
             raise ValueError(f"--imgsz {input_hw[0]} {input_hw[1]}: both sides must be multiples of the model's "
                              f"stride {stride}")
-        replace_nearest_upsampling(model.model.model)
+        rewrite_for_atom(model.model.model)
         with _quiet_ultralytics():  # nms=None: the raw outputs, decoded by naoslam (False warns of a missing head)
             exported = Path(model.export(format="onnx", imgsz=list(input_hw), simplify=True, dynamic=dynamic,
                                          nms=None, device="cpu", verbose=False))

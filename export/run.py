@@ -47,7 +47,7 @@ class ExportJob:
         if self.input_hw is not None and any(side < 16 or side % 16 for side in self.input_hw):
             raise ValueError(f"--imgsz {self.input_hw[0]} {self.input_hw[1]}: height and width must be positive "
                              "multiples of the model's stride, 32 for YOLOv8 (the Nao's frames: 480 640) or 16 for "
-                             "robot-p4-seg (240 320)")
+                             "robot-p4-seg (240 320, with --dynamic)")
         valid_confidence(self.conf)
 
     @property
@@ -91,12 +91,24 @@ def read_frames(paths: list[Path]) -> list[np.ndarray]:
 
 def input_size(checkpoint: dict, frame_hw: tuple[int, int]) -> tuple[int, int]:
     """The input (height, width) a checkpoint is exported at by default: the width it was trained at, the height
-    in the frames' proportion, rounded up to a multiple of 32 (Ultralytics' predictor rounds so). Roboflow's
-    square frames give a square input; the Nao's 640x480 frames give 480x640 (256x320 for a 320 px robot model)."""
+    in the frames' proportion, rounded up to a multiple of 32 (Ultralytics' predictor, which trained and validated it,
+    rounds so). Roboflow's square frames give a square input; the Nao's 640x480 frames give 480x640 (256x320 for a
+    320 px robot model)."""
     trained = (checkpoint.get("train_args") or {}).get("imgsz")
     width = int(trained if isinstance(trained, int) else max(trained or NAO_INPUT_HW))
     width = -(-width // 32) * 32
     return -(-round(width * frame_hw[0] / frame_hw[1]) // 32) * 32, width
+
+
+def verification_size(input_hw: tuple[int, int], dynamic: bool) -> tuple[int, int]:
+    """The input size the export is checked against PyTorch at: ``input_hw`` rounded up to 32, the multiple that
+    Ultralytics' predictor (the reference) pads to. A size off that grid needs a dynamic export, which runs both."""
+    rounded = (-(-input_hw[0] // 32) * 32, -(-input_hw[1] // 32) * 32)
+    if rounded != tuple(input_hw) and not dynamic:
+        raise ValueError(f"--imgsz {input_hw[0]} {input_hw[1]}: Ultralytics' predictor, which checks the export, "
+                         f"runs only at multiples of 32 ({rounded[0]} {rounded[1]}) - add --dynamic, or export at "
+                         f"{rounded[0]} {rounded[1]}")
+    return rounded
 
 
 def run_export(job: ExportJob) -> dict:
@@ -110,16 +122,17 @@ def run_export(job: ExportJob) -> dict:
         check_output_file(output, job.force, inputs)
     frames = read_frames(dataset_images(data, ("valid", "test"), VERIFY_FRAMES, "--data"))
     input_hw = job.input_hw or input_size(checkpoint, frames[0].shape[:2])
+    checked_hw = verification_size(input_hw, job.dynamic)
     calibration = dataset_images(job.calib_data or data, ("train",), CALIBRATION_IMAGES,
                                  "--calib-data" if job.calib_data else "--data (or --calib-data)") if job.int8 else []
     with ExitStack() as outputs:  # every file lands together, after the report is made, or none does
         fp32_path = outputs.enter_context(atomic_path(job.out))
         export_onnx(job.weights, fp32_path, input_hw, force=True, dynamic=job.dynamic)
-        reference = ultralytics_predict(job.weights, frames, input_hw, job.conf)
-        fp32 = frontend_predict(fp32_path, frames, job.conf)
+        reference = ultralytics_predict(job.weights, frames, checked_hw, job.conf)
+        fp32 = frontend_predict(fp32_path, frames, job.conf, checked_hw)
         agreement = compare(reference, fp32, job.conf, FP32_TOLERANCE.margin)
         report = {"weights": str(job.weights), "onnx": str(job.out), "input_hw": list(input_hw),
-                  "dynamic": job.dynamic,
+                  "dynamic": job.dynamic, "verified_at_hw": list(checked_hw),
                   "verify_frames": len(frames), "conf": job.conf,
                   "fp32_vs_pytorch": agreement.as_dict(), "fp32_problems": agreement.problems(FP32_TOLERANCE)}
         if report["fp32_problems"]:
@@ -129,7 +142,7 @@ def run_export(job: ExportJob) -> dict:
         if job.int8:
             int8_path = outputs.enter_context(atomic_path(job.int8_path))
             quantize_int8(fp32_path, int8_path, calibration, reduce_range=job.reduce_range)
-            int8 = compare(fp32, frontend_predict(int8_path, frames, job.conf), job.conf, INT8_TOLERANCE.margin)
+            int8 = compare(fp32, frontend_predict(int8_path, frames, job.conf, checked_hw), job.conf, INT8_TOLERANCE.margin)
             report.update(int8=str(job.int8_path), calibration_images=len(calibration), int8_vs_fp32=int8.as_dict(),
                           int8_problems=int8.problems(INT8_TOLERANCE))
             models["int8"] = int8_path
@@ -162,8 +175,11 @@ def print_report(report: dict) -> None:
     comparisons = [(label, report[key], report[problems]) for key, problems, label in (
         ("fp32_vs_pytorch", "fp32_problems", "ONNX FP32 vs PyTorch"),
         ("int8_vs_fp32", "int8_problems", "ONNX INT8 vs FP32")) if key in report]
-    table = Table(title=f"export at {report['input_hw'][1]}x{report['input_hw'][0]}: "
-                        f"{report['verify_frames']} frames, conf {report['conf']}")
+    height, width = report["input_hw"]
+    checked_height, checked_width = report.get("verified_at_hw", report["input_hw"])
+    checked = "" if (height, width) == (checked_height, checked_width) else \
+        f", checked at {checked_width}x{checked_height} (Ultralytics' size)"
+    table = Table(title=f"export at {width}x{height}{checked}: {report['verify_frames']} frames, conf {report['conf']}")
     table.add_column("")
     for label, _, _ in comparisons:
         table.add_column(label, justify="right")

@@ -12,10 +12,15 @@ from naoslam.detections import Detection
 from naoslam.detector import LandmarkDetector
 
 
-def frontend_predict(model: Path, frames: list[np.ndarray], conf: float) -> list[list[Detection]]:
-    """The naoslam front end's detections on the same frames."""
+def frontend_predict(model: Path, frames: list[np.ndarray], conf: float,
+                     input_hw: tuple[int, int] | None = None) -> list[list[Detection]]:
+    """The naoslam front end's detections on the same frames (at ``input_hw``, default the model's own)."""
     detector = LandmarkDetector(model, conf=conf, classes=None)
-    return [detector(frame) for frame in frames]
+    found = []
+    for frame in frames:
+        blob, box = detector.prepare(frame, input_hw)
+        found.append(detector.decode(detector.forward(blob), box))
+    return found
 
 
 @dataclass(frozen=True)

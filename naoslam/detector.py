@@ -234,7 +234,7 @@ class LandmarkDetector:
         return self._letterboxes[key]
 
     def band_input_hw(self, frame_hw: tuple[int, int], band_rows: int) -> tuple[int, int]:
-        """Input size for the lowest ``band_rows`` of a frame: the full frame's scale, height rounded up to 32."""
+        """Input size for the lowest ``band_rows`` of a frame: the full frame's scale, height rounded up to the stride."""
         gain = min(self.input_hw[0] / frame_hw[0], self.input_hw[1] / frame_hw[1])
         stride = self.info.stride
         return int(math.ceil(band_rows * gain / stride) * stride), self.input_hw[1]

@@ -113,7 +113,7 @@ def test_run_export_fails_and_writes_nothing_when_onnx_disagrees(tiny_weights, s
                                                                  monkeypatch):
     import export.run
 
-    def shifted_boxes(model, frames, conf):
+    def shifted_boxes(model, frames, conf, input_hw):
         return [[replace(d, box=tuple(v + 4.0 for v in d.box)) for d in found] for found in
                 export.run.ultralytics_predict(tiny_weights, frames, (96, 128), conf)]
 
@@ -218,6 +218,17 @@ def test_export_takes_the_training_width_and_the_frames_proportion_by_default(tr
     from export.run import input_size
 
     assert input_size({"train_args": {"imgsz": trained}}, frame_hw) == expected
+
+
+def test_an_export_off_ultralytics_grid_is_checked_at_it_and_must_be_dynamic():
+    """Ultralytics' predictor, the reference, pads to multiples of 32: a 240x320 export is checked at 256x320, which
+    only a dynamic graph can run."""
+    from export.run import verification_size
+
+    assert verification_size((240, 320), dynamic=True) == (256, 320)
+    assert verification_size((480, 640), dynamic=False) == (480, 640)
+    with pytest.raises(ValueError, match="add --dynamic, or export at 256 320"):
+        verification_size((240, 320), dynamic=False)
 
 
 def test_an_export_whose_frames_show_no_detection_says_nothing_was_compared(capsys):
