@@ -184,6 +184,54 @@ def test_box_only_export_is_refused_in_the_same_words_and_never_fixed(command, d
     assert not out.exists()
 
 
+def yolo_frames_of_boxes_and_other_classes(data: Path, tmp_path: Path) -> Path:
+    """Every train frame labelled empty but two: one with a box, one with an outline of a class that is no pole."""
+    labels = sorted((data / "train" / "labels").glob("*.txt"))
+    for label in labels:
+        label.write_text("")
+    config = yaml.safe_load((data / "data.yaml").read_text())
+    config["names"] = list(config["names"]) + ["referee"]
+    (data / "data.yaml").write_text(yaml.safe_dump(config))
+    labels[0].write_text("0 0.5 0.5 0.1 0.3\n")
+    labels[1].write_text(f"{len(config['names']) - 1} 0.1 0.1 0.2 0.1 0.2 0.3\n")
+    return data
+
+
+def coco_frames_of_boxes_and_other_classes(data: Path, tmp_path: Path) -> Path:
+    """The same in a COCO export: a box without a polygon, and an outline of a category that is no pole."""
+    coco = to_coco(data, tmp_path / "coco")
+
+    def change(json_data: dict) -> None:
+        first, second = json_data["images"][0]["id"], json_data["images"][1]["id"]
+        json_data["categories"].append({"id": 99, "name": "referee", "supercategory": "none"})
+        json_data["annotations"] = [
+            {"id": 0, "image_id": first, "category_id": 1, "bbox": [10, 10, 20, 60], "segmentation": []},
+            {"id": 1, "image_id": second, "category_id": 99, "segmentation": [[10, 10, 30, 10, 30, 60]]}]
+
+    coco_edit(coco, change)
+    return coco
+
+
+@pytest.mark.parametrize("make", [yolo_frames_of_boxes_and_other_classes, coco_frames_of_boxes_and_other_classes])
+def test_check_counts_box_only_frames_and_frames_of_other_classes_apart_from_empty_ones(make, dataset_copy, tmp_path,
+                                                                                      capsys, monkeypatch):
+    """A frame whose labels are boxes, or outlines of classes that name no pole, is not a frame showing no pole."""
+    from detector.datasets.check import check_dataset
+
+    monkeypatch.delenv("COLUMNS", raising=False)  # as logged: the table is printed whole
+
+    data = make(dataset_copy, tmp_path)
+    samples = check_dataset(data, progress=False).dataset.split("train")
+    assert [s.boxes for s in samples].count(1) == 1 and sum(s.unread for s in samples) == 2
+    assert sum(s.negative for s in samples) == len(samples) - 2
+    assert main(["check", str(data)]) == 1
+    lines = capsys.readouterr().out.splitlines()
+    header = next(line for line in lines if "split" in line)
+    assert "no pole read" in header
+    cells = next(line for line in lines if line.strip("│┃ ").startswith("train")).replace("│", " ").split()
+    assert cells[1:5] == [str(len(samples)), str(len(samples) - 2), "1", "1"]  # images, empty, box-only, no pole read
+
+
 def test_check_summarises_many_problems_and_writes_the_whole_list(dataset_copy, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     for label in sorted(dataset_copy.rglob("labels/*.txt")):
@@ -268,3 +316,24 @@ def test_coco_without_sizes_and_with_flat_polygons_and_a_foreign_annotations_fil
     (tmp_path / "yolo" / "annotations.json").write_text(json.dumps([{"file": "x.jpg"}]))
     assert main(["evaluate", "--data", str(tmp_path / "yolo"), "--out", str(tmp_path / "eval")]) == 0
     assert "not an annotations.json of `poles synth`" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("command", ["check", "split"])
+def test_a_folder_that_cannot_be_read_is_named_with_the_fix(command, dataset_copy, tmp_path, capsys, monkeypatch):
+    """As a user meets a folder copied from another account (root reads everything, so the refusal is imitated)."""
+    locked = (dataset_copy / "valid" / "images").resolve()
+    iterdir = Path.iterdir
+
+    def refuse(folder: Path):
+        if folder.resolve() == locked:
+            raise PermissionError(13, "Permission denied", str(folder))
+        return iterdir(folder)
+
+    monkeypatch.setattr(Path, "iterdir", refuse)
+    argv = ["check", str(dataset_copy)] if command == "check" else \
+        ["split", "--data", str(dataset_copy), "--out", str(tmp_path / "out")]
+    assert main(argv) in (1, 2)
+    captured = capsys.readouterr()
+    printed = " ".join((captured.out + captured.err).split())
+    assert "folder cannot be read (Permission denied)" in printed and f"chmod -R u+rX {locked}" in printed
+    assert "Traceback" not in printed and not (tmp_path / "out").exists()

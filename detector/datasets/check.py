@@ -136,21 +136,24 @@ def print_report(report: CheckReport, console: Console | None = None, show_notes
 
 
 def _split_table(report: CheckReport) -> Table:
-    """One row per split: images, empty and box-only frames, unreadable images, poles per class, image sizes."""
+    """One row per split: images, frames labelled empty, frames whose labels give no pole (box-only ones apart),
+    unreadable images, poles per class, image sizes."""
     table = Table(title=f"dataset {report.dataset.root}")
-    for column in ("split", "images", "empty", "box-only", "unreadable", *CLASSES, "poles", "image sizes"):
+    for column in ("split", "images", "empty", "box-only", "no pole read", "unreadable", *CLASSES, "poles",
+                   "image sizes"):
         table.add_column(column, justify="left" if column in ("split", "image sizes") else "right")
-    box_only = {p.path for p in report.problems if BOX_ONLY in p.message}
     for split in SPLITS:
         samples = report.dataset.split(split)
         if not samples:
             continue
         per_class = Counter(i.cls for s in samples for i in s.instances)
-        negatives = sum(1 for s in samples if not s.instances and s.label not in box_only)
-        boxes = sum(1 for s in samples if s.label in box_only)
+        unlabelled = [s for s in samples if not s.instances]
+        negatives = sum(s.negative for s in unlabelled)
+        boxes = sum(1 for s in unlabelled if s.boxes)
+        unread = sum(1 for s in unlabelled if s.unread and not s.boxes)
         unreadable = sum(1 for s in samples if s.image in report.unreadable)
         sizes = ", ".join(f"{k} ({v})" for k, v in report.sizes.get(split, Counter()).most_common(3))
-        table.add_row(split, str(len(samples)), str(negatives), str(boxes), str(unreadable),
+        table.add_row(split, str(len(samples)), str(negatives), str(boxes), str(unread), str(unreadable),
                       *(str(per_class[c]) for c in CLASSES), str(sum(per_class.values())), sizes)
     return table
 

@@ -11,7 +11,7 @@ from detector.datasets.model import IMAGE_SUFFIXES, SPLITS, Dataset, Instance, P
 from detector.datasets.names import class_codes, unknown_class_problems
 from detector.datasets.orientation import stored_and_upright_size
 from detector.datasets.polygons import merge_polygons, polygon_area
-from detector.datasets.labels import BOX_ONLY, MIN_NORMALISED_AREA
+from detector.datasets.labels import BOX_ONLY, MIN_NORMALISED_AREA, unread_entries
 
 COCO_FILENAME = "_annotations.coco.json"
 
@@ -79,8 +79,11 @@ def _read_coco_split(split: str, json_path: Path, problems: list[Problem], renam
         size = _image_size(image, image_path, json_path, problems)
         if size is None:
             continue
-        instances = [inst for a in by_image.get(image_id, []) if (inst := _instance(a, categories, size, json_path, problems))]
-        samples.append(Sample(split, image_path, None, instances))
+        annotations, found = by_image.get(image_id, []), []
+        instances = [inst for a in annotations if (inst := _instance(a, categories, size, json_path, found))]
+        problems += found
+        _, boxes = unread_entries(found)
+        samples.append(Sample(split, image_path, None, instances, len(annotations) - len(instances), boxes))
     return samples
 
 

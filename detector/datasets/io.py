@@ -16,7 +16,7 @@ import numpy as np
 import yaml
 
 from detector.datasets.jpeg import truncated_jpeg
-from detector.datasets.labels import format_label_line, parse_label_file
+from detector.datasets.labels import format_label_line, parse_label_file, unread_entries
 from detector.datasets.model import IMAGE_SUFFIXES, SPLITS, Dataset, DatasetError, Instance, Problem, Sample
 from detector.datasets.names import class_codes, unknown_class_problems
 from detector.atomic import atomic_folder
@@ -193,6 +193,19 @@ def _split_folder(base: Path, value, split: str) -> Path | None:
 
 
 def _read_split(split: str, images_dir: Path, names, problems: list[Problem], unknown_uses: Counter) -> list[Sample]:
+    """The samples of one split's images folder and the labels folder beside it; a folder that cannot be listed is
+    one problem naming it (the split then reads as empty)."""
+    try:
+        return _read_split_folders(split, images_dir, names, problems, unknown_uses)
+    except OSError as exc:
+        folder = Path(exc.filename) if exc.filename else images_dir
+        problems.append(Problem("error", folder, None, f"folder cannot be read ({exc.strerror or exc})",
+                                f"give yourself read access (chmod -R u+rX {folder}) or copy the dataset"))
+        return []
+
+
+def _read_split_folders(split: str, images_dir: Path, names, problems: list[Problem],
+                        unknown_uses: Counter) -> list[Sample]:
     labels_dir = images_dir.parent / "labels"
     images = {p.stem: p for p in sorted(images_dir.iterdir()) if p.suffix.lower() in IMAGE_SUFFIXES}
     seen: dict[str, Path] = {}
@@ -207,8 +220,10 @@ def _read_split(split: str, images_dir: Path, names, problems: list[Problem], un
     for stem in sorted(set(images) | set(labels)):
         image, label = images.get(stem), labels.get(stem)
         instances: list[Instance] = []
+        unread = boxes = 0
         if label is not None:
             instances, found = parse_label_file(label, names, unknown_uses)
+            unread, boxes = unread_entries(found)
             problems += found
             if image is None:
                 problems.append(Problem("error", label, None, "label without an image",
@@ -216,7 +231,7 @@ def _read_split(split: str, images_dir: Path, names, problems: list[Problem], un
         else:
             problems.append(Problem("note", image, None, "image without a label file: read as a negative (no landmark)",
                                     "add an empty label file to make that explicit"))
-        samples.append(Sample(split, image, label, instances))
+        samples.append(Sample(split, image, label, instances, unread, boxes))
     return samples
 
 

@@ -84,6 +84,13 @@ def _parse_line(path: Path, number: int, tokens: list[str], names: tuple[str | N
     return Instance(cls, polygon), problems
 
 
+def unread_entries(problems: list[Problem]) -> tuple[int, int]:
+    """(entries not read, boxes among them) from the problems of one label file or one image's annotations: every
+    error with a line number (YOLO) or naming an annotation (COCO) is one entry left out."""
+    errors = [p for p in problems if p.severity == "error" and (p.line or p.message.startswith("annotation "))]
+    return len(errors), sum(BOX_ONLY in p.message for p in errors)
+
+
 def format_label_line(class_id: int, polygon: np.ndarray) -> str:
     """One label line with 6-decimal normalised coordinates."""
     return " ".join([str(class_id)] + [f"{v:.6f}" for v in np.clip(polygon, 0.0, 1.0).reshape(-1)])

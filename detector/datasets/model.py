@@ -55,12 +55,21 @@ class Instance:
 
 @dataclass
 class Sample:
-    """One image of a split with its label file (None for an unlabelled image) and instances."""
+    """One image of a split with its label file (None for an unlabelled image, or one read from COCO JSON) and
+    instances. ``unread``: its label entries that were not read as poles (boxes, classes that name no landmark,
+    broken lines; each is a problem of the dataset), ``boxes`` the bounding boxes among them."""
 
     split: str
     image: Path | None
     label: Path | None
     instances: list[Instance] = field(default_factory=list)
+    unread: int = 0
+    boxes: int = 0
+
+    @property
+    def negative(self) -> bool:
+        """A frame labelled as showing no landmark: nothing in its labels, read or unread."""
+        return not self.instances and not self.unread
 
     @property
     def stem(self) -> str:
