@@ -4,8 +4,8 @@ The Nao v6's Atom E3845 has SSE4.2 and no AVX. OpenVINO's CPU plugin (oneDNN) ho
 so a second process runs every model with that cap; an operator without an SSE4.1 primitive refuses to compile there,
 and the table says so. onnxruntime has no such cap: its rows run at this machine's full instruction set. OpenCV and
 numpy (letterbox, decoding, masks, rotated boxes) are not capped either. The front end is ``LandmarkDetector``'s
-call (letterbox, forward pass, NMS, masks, rotated boxes) plus range and bearing from the model's calibration;
-"bare" is the forward pass alone on a prepared tensor. Frames: a rendered walk, so the horizon band is the one the
+call (letterbox, forward pass, NMS, masks, rotated boxes, ground gate) plus range and bearing from the model's
+calibration, the frame's ground view built once for both, as ``naoslam.FrontEnd`` does; "bare" is the forward pass alone on a prepared tensor. Frames: a rendered walk, so the horizon band is the one the
 robot would crop. Ratios are to the shipped accurate model's INT8 copy under OpenVINO in the same process.
 The script fails when the capped run is not slower than the uncapped one (the cap was not in force).
 
@@ -73,10 +73,11 @@ def measure(count: int, repeats: int) -> dict:
             blobs = [detector.prepare(f)[0] for f in frames]
             results[f"{label}|{engine}|bare"] = median_ms(detector.forward, blobs, repeats)
             for crop in (False, True):
-                def front_end(i: int) -> None:
-                    found = detector(frames[i], poses[i], crop=crop)
+                def front_end(i: int) -> None:  # as naoslam.FrontEnd: one ground view per frame, gate and ranges
+                    view = detector.ground_view(frames[i].shape[:2], poses[i])
+                    found = detector(frames[i], poses[i], crop=crop, view=view)
                     if measurement is not None:
-                        measurement.measure(found, frames[i].shape[1], poses[i], frames[i].shape[0])
+                        measurement.measure(found, frames[i].shape[1], view=view)
                 results[f"{label}|{engine}|{'band' if crop else 'whole'}"] = median_ms(front_end, range(count), repeats)
     colour_filter = ColourFilter()
     results["colour filter|opencv|whole"] = median_ms(colour_filter, frames, repeats)

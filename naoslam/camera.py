@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -104,7 +104,7 @@ class CameraPose:
     roll: float = 0.0
 
     def __post_init__(self) -> None:
-        bad = {name: value for name, value in asdict(self).items() if not math.isfinite(value)}
+        bad = {f.name: getattr(self, f.name) for f in fields(self) if not math.isfinite(getattr(self, f.name))}
         if bad:
             raise ValueError(f"camera pose {bad} is not finite - leave the pose out for this frame (no ground-plane "
                              "gate, no foot-row range) rather than pass a joint reading that failed")
