@@ -101,7 +101,7 @@ def group_export(real: Path, train_prefix: str, test_prefix: str, out: Path) -> 
 
 def real_mode(argv: list[str]) -> None:
     from detector.finetune.judge import REFERENCE, compare_models, render_set
-    from detector.finetune.pipeline import run_finetune, starting_weights
+    from detector.finetune.pipeline import run_finetune
     from detector.finetune.recipe import STARTING_MODELS, FinetuneRecipe
     from detector.synth.backdrops import scan_backdrops
 
@@ -134,7 +134,7 @@ def real_mode(argv: list[str]) -> None:
             group_rows = results["evaluate"]["rows"]
             backgrounds = SHARED / "real-backgrounds" / "images"
             if backgrounds.is_dir():
-                models = {REFERENCE: starting_weights(recipe), "fine-tune": Path(results["train"]["weights"]),
+                models = {REFERENCE: recipe.start.weights, "fine-tune": Path(results["train"]["weights"]),
                           group_rows[-1]["model"]: Path(results["blend"]["weights"])}
                 backdrop_set = render_set(folder / "backdrops", args.frames, 0.0, 9103, scan_backdrops(backgrounds),
                                           backlight_share=0.5)

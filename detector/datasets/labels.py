@@ -85,9 +85,9 @@ def _parse_line(path: Path, number: int, tokens: list[str], names: tuple[str | N
 
 
 def unread_entries(problems: list[Problem]) -> tuple[int, int]:
-    """(entries not read, boxes among them) from the problems of one label file or one image's annotations: every
-    error with a line number (YOLO) or naming an annotation (COCO) is one entry left out."""
-    errors = [p for p in problems if p.severity == "error" and (p.line or p.message.startswith("annotation "))]
+    """(entries not read, boxes among them) from the problems of one label file or one image's annotations: each
+    error is an entry left out (a label file that cannot be read counts as one)."""
+    errors = [p for p in problems if p.severity == "error"]
     return len(errors), sum(BOX_ONLY in p.message for p in errors)
 
 

@@ -16,15 +16,10 @@ from detector.atomic import write_json
 from detector.console import make_console
 from detector.finetune.judge import REFERENCE, RENDERED_SETS, compare_models, render_set
 from detector.finetune.recipe import FinetuneRecipe
-from detector.model_files import ROBOT_WEIGHTS, SHIPPED_WEIGHTS
 from detector.stages import StageLedger, file_fingerprint, stage_key
 from naoslam.shipped import OPERATING_CONF_KEY
 
 console = make_console()
-
-#: The deliverable's file name in RUN/models for each starting model (the accurate one's INT8 copy beside it).
-MODEL_NAMES = {"accurate": "poles-finetuned.onnx", "robot": "poles-robot-finetuned.onnx"}
-
 
 def run_finetune(export: Path, out: Path, recipe: FinetuneRecipe, renames: dict[str, str] | None = None) -> dict:
     """Run every stage into ``out`` (an earlier fine-tune's folder resumes it); returns the results of each stage.
@@ -84,7 +79,7 @@ def _stages(ledger: StageLedger, export: Path, out: Path, recipe: FinetuneRecipe
     results["mix"] = ledger.run("mix", mix_key, [mixed / "data.yaml"],
                                 lambda: _mix(augmented, rehearsal if frames else None, mixed))
     training = {k: v for k, v in asdict(recipe).items() if k != "evaluation_frames"}
-    train_key = stage_key(mix=mix_key, recipe=training, start=file_fingerprint(starting_weights(recipe)))
+    train_key = stage_key(mix=mix_key, recipe=training, start=file_fingerprint(recipe.start.weights))
     spent = sum(record.seconds for record in ledger.timings()) / 60
     run = out / "train"
     results["train"] = ledger.run("train", train_key, [run / "weights" / "last.pt"],
@@ -94,7 +89,7 @@ def _stages(ledger: StageLedger, export: Path, out: Path, recipe: FinetuneRecipe
     results["blend"] = ledger.run("blend", blend_key, [out / "blend"], lambda: _blend(
         run / "weights" / "last.pt", data, out / "blend", conf, recipe))
     export_key = stage_key(blend=blend_key)
-    model = out / "models" / MODEL_NAMES[recipe.model]
+    model = out / "models" / recipe.start.finetuned_name
     results["export model"] = ledger.run("export model", export_key, [model], lambda: _export_model(
         Path(results["blend"]["weights"]), model, data, mixed, recipe))
     evaluate_key = stage_key(export=export_key, frames=recipe.evaluation_frames, sets=RENDERED_SETS)
@@ -162,14 +157,9 @@ def _train(key: str, data: Path, run: Path, recipe: FinetuneRecipe, spent_minute
                              batch=recipe.batch, patience=1000, seed=recipe.seed, time_hours=minutes / 60,
                              hyperparameters=recipe.hyperparameters())
     if not finished:
-        train_model(data, run, settings, weights=starting_weights(recipe), resume=same_run)
+        train_model(data, run, settings, weights=recipe.start.weights, resume=same_run)
     return {**summarise_run(run), "minutes": round(minutes, 2), "curves": str(run / "training_curves.png"),
             "weights": str(run / "weights" / "last.pt")}
-
-
-def starting_weights(recipe: FinetuneRecipe) -> Path:
-    """The shipped checkpoint a fine-tune starts from and is blended and compared with."""
-    return ROBOT_WEIGHTS if recipe.model == "robot" else SHIPPED_WEIGHTS
 
 
 def _starting_metadata(recipe: FinetuneRecipe) -> dict:
@@ -186,7 +176,7 @@ def _blend(finetuned: Path, data: Path, folder: Path, conf: float, recipe: Finet
 
     shutil.rmtree(folder, ignore_errors=True)
     folder.mkdir(parents=True)
-    return choose_blend(starting_weights(recipe), finetuned, data, folder, conf, recipe.training_size)
+    return choose_blend(recipe.start.weights, finetuned, data, folder, conf, recipe.training_size)
 
 
 def _export_model(weights: Path, model: Path, data: Path, mixed: Path, recipe: FinetuneRecipe) -> dict:
@@ -229,7 +219,7 @@ def _evaluate(folder: Path, data: Path, finetuned: Path, blend: dict, conf: floa
         sets[name] = (render_set(folder / "sets" / name.replace(" ", "-"), recipe.evaluation_frames,
                                  kind["far_share"], kind["seed"]),
                       "test")
-    models = {REFERENCE: starting_weights(recipe), "fine-tune": finetuned,
+    models = {REFERENCE: recipe.start.weights, "fine-tune": finetuned,
               f"blend {blend['chosen']:g}": Path(blend["weights"])}
     return {"held_out": held_out, "conf": conf,
             "rows": compare_models(models, sets, folder, conf, recipe.training_size)}

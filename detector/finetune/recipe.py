@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 #: Blend shares tried on the export's valid split: the fine-tune's share, 0 being the shipped model.
 BLEND_SHARES = (0.0, 0.25, 0.5, 0.75, 1.0)
@@ -17,7 +18,7 @@ class StartingModel:
     """A shipped model a team fine-tunes: the ``LandmarkDetector`` profile that runs it, the width it was trained at,
     its backbone's layer count (what ``freeze`` keeps by default) and how it is exported (the accurate model as FP32
     and INT8 at a fixed input; the robot model as FP32 only, which runs faster than INT8 at the Atom's instruction
-    set, with a dynamic input for the horizon band)."""
+    set, with a dynamic input for the horizon band), and the file name the fine-tune is delivered under."""
 
     profile: str
     architecture: str
@@ -25,11 +26,21 @@ class StartingModel:
     backbone_layers: int
     int8: bool
     dynamic: bool
+    finetuned_name: str
+
+    @property
+    def weights(self) -> Path:
+        """The shipped checkpoint a fine-tune starts from and is blended and compared with."""
+        from detector.model_files import ROBOT_WEIGHTS, SHIPPED_WEIGHTS
+
+        return ROBOT_WEIGHTS if self.profile == "robot" else SHIPPED_WEIGHTS
 
 
 #: The shipped models ``poles finetune --model`` starts from.
-STARTING_MODELS = {"accurate": StartingModel("accurate", "yolov8n-seg", 640, 10, int8=True, dynamic=False),
-                   "robot": StartingModel("robot", "robot-p4-seg", 320, 8, int8=False, dynamic=True)}
+STARTING_MODELS = {"accurate": StartingModel("accurate", "yolov8n-seg", 640, 10, int8=True, dynamic=False,
+                                             finetuned_name="poles-finetuned.onnx"),
+                   "robot": StartingModel("robot", "robot-p4-seg", 320, 8, int8=False, dynamic=True,
+                                          finetuned_name="poles-robot-finetuned.onnx")}
 
 
 @dataclass(frozen=True)
