@@ -22,6 +22,10 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     train.add_argument("--weights", help="checkpoint (or `poles train` run folder) to fine-tune from (default: the "
                                          "shipped pole model for yolov8n-seg), or `scratch` to train from the "
                                          "architecture alone")
+    train.add_argument("--teacher", type=run_checkpoint,
+                       help="distil from this larger model (a checkpoint or `poles train` run folder, e.g. "
+                            "detector/weights/poles-yolov8n-seg.pt): the network also learns its features at the "
+                            "strides both have")
     train.add_argument("--epochs", type=whole_number(1), default=defaults.EPOCHS,
                        help=f"epochs to train (default {defaults.EPOCHS}; --time overrides)")
     train.add_argument("--time", type=finite_number,
@@ -112,7 +116,7 @@ def _train(args: argparse.Namespace) -> int:
     settings = TrainSettings(model=model or defaults.MODEL, epochs=args.epochs, imgsz=args.imgsz, batch=args.batch,
                              patience=args.patience, seed=args.seed, threads=threads,
                              adaptive_threads=args.threads == "auto", workers=args.workers,
-                             cache=not args.no_cache, time_hours=args.time, device=args.device,
+                             cache=not args.no_cache, time_hours=args.time, device=args.device, teacher=args.teacher,
                              hyperparameters=parse_hyperparameters(args.hyperparameters))
     run = train_model(args.data, args.out, settings, weights=weights, resume=args.resume)
     best = summarise_run(run)

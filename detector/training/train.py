@@ -28,6 +28,7 @@ from detector.datasets.intake import open_dataset, training_view
 from detector.model_files import read_checkpoint
 from detector.training.curves import best_epoch, plot_training_curves
 from detector.training.devices import check_device
+from detector.training.distillation import check_teacher, shared_stride_distillation
 
 #: Ultralytics' segmentation models that can be built from their YAML without a download.
 ULTRALYTICS_MODELS = ("yolov8n-seg", "yolov8s-seg", "yolov8m-seg")
@@ -45,7 +46,8 @@ def architecture_yaml(model: str) -> str:
 MANAGED_ARGUMENTS = {"data": "--data", "project": "--out", "name": "--out", "exist_ok": "--out", "model": "--model",
                      "epochs": "--epochs", "time": "--time", "imgsz": "--imgsz", "batch": "--batch",
                      "patience": "--patience", "seed": "--seed", "workers": "--workers", "cache": "--no-cache",
-                     "device": "--device", "resume": "--resume", "save_dir": "--out", "amp": "", "plots": "",
+                     "device": "--device", "resume": "--resume", "save_dir": "--out", "distill_model": "--teacher",
+                     "amp": "", "plots": "",
                      "deterministic": "", "mode": "", "task": "", "cfg": ""}
 
 
@@ -67,6 +69,8 @@ class TrainSettings:
     device: str = defaults.DEVICE
     #: Let ``ThreadTuner`` pick the thread count by timing batches (``--threads auto``); off by default (docs/training.md).
     adaptive_threads: bool = False
+    #: A larger model whose features the network learns (``poles train --teacher``); see ``distillation``.
+    teacher: Path | None = None
     #: Further Ultralytics training arguments (``--set lr0=0.0002``), already typed; see ``parse_hyperparameters``.
     hyperparameters: dict = field(default_factory=dict)
 
@@ -152,6 +156,9 @@ def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | 
             raise FileNotFoundError(f"{weights}: no such checkpoint (nothing is downloaded: pass a local .pt)")
         if weights:
             read_checkpoint(Path(weights))  # a clear error for a file that is not a checkpoint
+        if settings.teacher:
+            check_teacher(Path(settings.teacher))
+            print(f"distilling from {settings.teacher}")
         print(f"starting from {weights or f'{settings.model}.yaml (no pretrained weights)'}")
         dataset = open_dataset(data, progress=progress)
         _clear_unfinished_run(out)
@@ -162,6 +169,9 @@ def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | 
             for name in ("model", "threads", "adaptive_threads"):
                 options.pop(name)
             options["time"] = options.pop("time_hours")
+            teacher = options.pop("teacher")
+            if teacher:
+                options["distill_model"] = str(teacher)
             options.update(options.pop("hyperparameters"))
             _train(model, tuner, data=str(data_yaml), project=str(out.parent), name=out.name, exist_ok=True,
                    amp=False, plots=False, deterministic=True, trainer=CpuSegmentationTrainer, **options)
@@ -170,11 +180,11 @@ def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | 
 
 
 def _train(model: YOLO, tuner: ThreadTuner | None, **options) -> None:
-    """``model.train(**options)``, with the thread tuner watching every batch when there is one and progress bars
-    written as whole lines into a log."""
+    """``model.train(**options)``, with the thread tuner watching every batch when there is one, progress bars
+    written as whole lines into a log, and a teacher distilled at the strides it shares with the network."""
     if tuner is not None:
         model.add_callback("on_train_batch_end", tuner)
-    with bars_as_log_lines():
+    with bars_as_log_lines(), shared_stride_distillation():
         model.train(**options)
 
 
