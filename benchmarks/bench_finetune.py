@@ -5,7 +5,7 @@ fine-tune on the 6 calibration shots and test on the 8 walk frames, then the oth
 whole ``poles finetune`` (its --minutes on every core), and the shipped model, the fine-tune and the chosen blend are
 compared on the held-out group, on fresh rendered sets (everything, far poles) and, where
 ``../shared/real-backgrounds`` is present, on a set drawn over real frames half of it back-lit; one table.
-Usage: python benchmarks/bench_finetune.py real [--model accurate|robot] [--minutes 15] [--frames 200] [--rehearsal-share S] [--freeze N]
+Usage: python benchmarks/bench_finetune.py real [--model accurate|robot] [--minutes 15] [--frames 200] [--rehearsal-share S] [--backgrounds FOLDER] [--freeze N]
        [--lr0 L] [--out FOLDER]
 
 ``rendered`` mode (the default): how good is a user's model after minutes of CPU training, from scratch against from
@@ -114,12 +114,15 @@ def real_mode(argv: list[str]) -> None:
     parser.add_argument("--freeze", type=int, default=defaults.freeze)
     parser.add_argument("--lr0", type=float, default=defaults.lr0)
     parser.add_argument("--warmup-epochs", type=float, default=defaults.warmup_epochs)
+    parser.add_argument("--backgrounds", type=Path,
+                        help="frames without poles for the rehearsal frames' backdrops (e.g. ../shared/real-backgrounds)")
     parser.add_argument("--out", type=Path, help="keep every run here (default: a temporary folder)")
     args = parser.parse_args(argv)
     real = SHARED / "real-poles"
     if not (real / "data.yaml").is_file():
         sys.exit(f"{real}: not here - the real mode needs ../shared/real-poles")
-    recipe = FinetuneRecipe(model=args.model, minutes=args.minutes, rehearsal_share=args.rehearsal_share, freeze=args.freeze,
+    recipe = FinetuneRecipe(model=args.model, minutes=args.minutes, rehearsal_share=args.rehearsal_share,
+                            backgrounds=str(args.backgrounds) if args.backgrounds else None, freeze=args.freeze,
                             lr0=args.lr0, warmup_epochs=args.warmup_epochs, evaluation_frames=args.frames)
     with tempfile.TemporaryDirectory() as tmp:
         root = args.out or Path(tmp)

@@ -210,3 +210,43 @@ def test_training_interrupted_after_an_epoch_resumes_from_it(export, tmp_path, m
     results = run_finetune(export, tmp_path / "run", TINY)
     assert calls == [False, True]  # the second call resumed the first run
     assert results["train"]["epochs"] >= 2 and (tmp_path / "run" / "models" / "poles-finetuned.onnx").is_file()
+
+
+def _magenta_frames(folder: Path) -> int:
+    """Frames under ``folder`` whose median pixel is the magenta of the test backdrops (blue and red 2.5x green)."""
+    import cv2
+    import numpy as np
+
+    medians = [np.median(cv2.imread(str(path)).reshape(-1, 3), axis=0) for path in sorted(folder.rglob("*.jpg"))]
+    return sum(blue > 2.5 * green and red > 2.5 * green for blue, green, red in medians)
+
+
+def test_rehearsal_frames_are_drawn_over_the_teams_own_backgrounds(tmp_path):
+    """`--backgrounds`: the rehearsal frames stand over the team's frames without poles (a magenta field here), and
+    over the renderer's rooms without it."""
+    import cv2
+    import numpy as np
+
+    from detector.finetune.pipeline import _render_rehearsal
+    from detector.synth.backdrops import scan_backdrops
+
+    (tmp_path / "field").mkdir()
+    for index in range(2):
+        cv2.imwrite(str(tmp_path / "field" / f"empty{index}.png"), np.full((480, 640, 3), (200, 40, 160), np.uint8))
+    paint = {"letters": {"p": [0.9, 0.4, 0.6], "b": [0.3, 0.5, 0.7], "y": [1.0, 0.9, 0.5], "g": [0.3, 0.4, 0.3]}}
+    recipe = FinetuneRecipe(backgrounds=str(tmp_path / "field"), backdrop_share=1.0)
+    drawn = _render_rehearsal(tmp_path / "over", paint, 6, recipe, scan_backdrops(tmp_path / "field"))
+    _render_rehearsal(tmp_path / "rooms", paint, 6, FinetuneRecipe(backdrop_share=1.0), ())
+    assert drawn["backdrops"] == 2
+    assert _magenta_frames(tmp_path / "over") >= 5 and _magenta_frames(tmp_path / "rooms") == 0
+
+
+def test_a_backgrounds_folder_without_images_is_refused_before_anything_is_written(export, tmp_path, capsys):
+    (tmp_path / "field").mkdir()
+    (tmp_path / "field" / "notes.txt").write_text("no frames yet")
+    before = _digest(export)
+    assert main(["finetune", str(export), "--out", str(tmp_path / "run"), "--backgrounds",
+                 str(tmp_path / "field")]) == 2
+    error = capsys.readouterr().err
+    assert f"--backgrounds {tmp_path / 'field'}: no images" in error and "Traceback" not in error
+    assert not (tmp_path / "run").exists() and _digest(export) == before

@@ -30,6 +30,10 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                           help="share of the training frames rendered in your paint: far poles, frames without "
                                f"poles, look-alikes your export may not show (default {DEFAULTS.rehearsal_share:g}; "
                                "0: your frames alone)")
+    finetune.add_argument("--backgrounds", type=Path,
+                          help="frames of your own field without poles, from the robot's camera: "
+                               f"{DEFAULTS.backdrop_share:.0%} of the rendered frames are drawn over them, so the "
+                               "fine-tune keeps seeing real clutter without poles (default: rendered rooms only)")
     finetune.add_argument("--freeze", type=whole_number(0), default=DEFAULTS.freeze,
                           help="first layers kept as shipped (default: the starting model's backbone, 10 layers for "
                                "the accurate model and 8 for the robot one; 0: none)")
@@ -53,7 +57,8 @@ def _finetune(args: argparse.Namespace) -> int:
     from detector.finetune.report import changes
 
     recipe = FinetuneRecipe(model=args.model, minutes=args.minutes, copies=args.copies, rehearsal_share=args.rehearsal_share,
-                            freeze=args.freeze, lr0=args.lr0, imgsz=args.imgsz, seed=args.seed,
+                            backgrounds=str(args.backgrounds) if args.backgrounds else None, freeze=args.freeze,
+                            lr0=args.lr0, imgsz=args.imgsz, seed=args.seed,
                             evaluation_frames=args.evaluation_frames)
     results = run_finetune(args.export, args.out, recipe, parse_renames(args.rename))
     for line in changes(results["evaluate"]):

@@ -17,6 +17,7 @@ from detector.console import make_console
 from detector.finetune.judge import REFERENCE, RENDERED_SETS, compare_models, render_set
 from detector.finetune.recipe import FinetuneRecipe
 from detector.stages import StageLedger, file_fingerprint, stage_key
+from detector.synth.backdrops import scan_backdrops
 from naoslam.shipped import OPERATING_CONF_KEY
 
 console = make_console()
@@ -26,12 +27,13 @@ def run_finetune(export: Path, out: Path, recipe: FinetuneRecipe, renames: dict[
     Raises ``StageFailed`` naming the stage that failed (everything before it stays)."""
     export, out = Path(export), Path(out)
     _check_run_folder(out, export)
+    backdrops = scan_backdrops(Path(recipe.backgrounds)) if recipe.backgrounds else ()
     out.mkdir(parents=True, exist_ok=True)
     ledger = StageLedger(out, announce=lambda text: console.rule(f"[bold]{text}", align="left"))
     console.print(f"[bold]poles finetune[/bold] {export} into {out}: the shipped {recipe.model} model, "
                   f"{recipe.minutes:g} minutes in all")
     start = time.perf_counter()
-    results = _stages(ledger, export, out, recipe, renames or {})
+    results = _stages(ledger, export, out, recipe, renames or {}, backdrops)
     results["seconds"] = {record.name: round(record.seconds, 1) for record in ledger.timings()}
     results["wall_seconds_this_call"] = round(time.perf_counter() - start, 1)
     from detector.finetune.report import write_report
@@ -57,7 +59,8 @@ def _export_fingerprint(export: Path) -> str:
     return stage_key(files=[(str(p.relative_to(export)), p.stat().st_size, p.stat().st_mtime_ns) for p in files])
 
 
-def _stages(ledger: StageLedger, export: Path, out: Path, recipe: FinetuneRecipe, renames: dict[str, str]) -> dict:
+def _stages(ledger: StageLedger, export: Path, out: Path, recipe: FinetuneRecipe, renames: dict[str, str],
+            backdrops: tuple[Path, ...]) -> dict:
     from augment.run import augment_dataset
     from detector.finetune.intake import prepare_export
 
@@ -72,9 +75,10 @@ def _stages(ledger: StageLedger, export: Path, out: Path, recipe: FinetuneRecipe
     results["augment"] = ledger.run("augment", augment_key, [augmented / "data.yaml"], lambda: augment_dataset(
         data, augmented, copies=recipe.copies, seed=recipe.seed, preview=True, force=True))
     frames = recipe.rehearsal_frames(results["augment"]["train_images_out"])
-    rehearsal_key = stage_key(paint=paint_key, frames=frames, far=recipe.far_share, own=recipe.own_paint_share)
+    rehearsal_key = stage_key(paint=paint_key, frames=frames, far=recipe.far_share, own=recipe.own_paint_share,
+                              backdrops=[str(path) for path in backdrops], backdrop_share=recipe.backdrop_share)
     results["rehearsal"] = ledger.run("rehearsal", rehearsal_key, [rehearsal / "data.yaml"] if frames else [],
-                                      lambda: _render_rehearsal(rehearsal, results["paint"], frames, recipe))
+                                      lambda: _render_rehearsal(rehearsal, results["paint"], frames, recipe, backdrops))
     mix_key = stage_key(augment=augment_key, rehearsal=rehearsal_key)
     results["mix"] = ledger.run("mix", mix_key, [mixed / "data.yaml"],
                                 lambda: _mix(augmented, rehearsal if frames else None, mixed))
@@ -106,9 +110,10 @@ def _measure_paint(data: Path, out: Path) -> dict:
     return paint
 
 
-def _render_rehearsal(folder: Path, paint: dict, frames: int, recipe: FinetuneRecipe) -> dict:
-    """Render the rehearsal frames, ``own_paint_share`` of them in the team's paint; none (and the folder removed)
-    when the recipe mixes none."""
+def _render_rehearsal(folder: Path, paint: dict, frames: int, recipe: FinetuneRecipe,
+                      backdrops: tuple[Path, ...]) -> dict:
+    """Render the rehearsal frames, ``own_paint_share`` of them in the team's paint and ``backdrop_share`` over
+    ``backdrops`` when there are any; none (and the folder removed) when the recipe mixes none."""
     from detector.synth.generate import SynthJob, generate_dataset
     from detector.synth.scene import SceneConfig
 
@@ -117,9 +122,11 @@ def _render_rehearsal(folder: Path, paint: dict, frames: int, recipe: FinetuneRe
         return {"frames": 0}
     team_paint = tuple(sorted((letter, tuple(rgb)) for letter, rgb in paint["letters"].items()))
     config = SceneConfig(team_paint=team_paint, team_paint_share=recipe.own_paint_share, far_share=recipe.far_share)
-    generate_dataset(folder, SynthJob(frames, recipe.seed + 7001, config=config), preview=True, force=True,
-                     split="train")
-    return {"frames": frames, "preview": str(folder / "preview.png")}
+    job = SynthJob(frames, recipe.seed + 7001, config=config, backgrounds=backdrops,
+                   backdrop_share=recipe.backdrop_share)
+    protect = (Path(recipe.backgrounds),) if recipe.backgrounds else ()
+    generate_dataset(folder, job, preview=True, force=True, split="train", protect=protect)
+    return {"frames": frames, "backdrops": len(backdrops), "preview": str(folder / "preview.png")}
 
 
 def _mix(augmented: Path, rehearsal: Path | None, out: Path) -> dict:

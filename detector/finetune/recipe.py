@@ -47,7 +47,9 @@ STARTING_MODELS = {"accurate": StartingModel("accurate", "yolov8n-seg", 640, 10,
 class FinetuneRecipe:
     """One fine-tune's settings. ``model``: the shipped model it starts from (``STARTING_MODELS``);
     ``rehearsal_share``: the share of the training frames that are rendered (``own_paint_share`` of them in the
-    team's paint, the rest in the renderer's own, and ``far_share`` of them with far poles only); ``freeze``: the first layers left as shipped (None: the starting
+    team's paint, the rest in the renderer's own, and ``far_share`` of them with far poles only; ``backdrop_share`` of
+    them drawn over the frames in ``backgrounds``, a folder of the team's own frames without poles, when one is given);
+    ``freeze``: the first layers left as shipped (None: the starting
     model's backbone); ``lr0``/``warmup_epochs``: AdamW's step and its ramp; ``imgsz`` None: the starting model's."""
 
     model: str = "accurate"
@@ -56,6 +58,9 @@ class FinetuneRecipe:
     rehearsal_share: float = 0.5
     far_share: float = 0.5
     own_paint_share: float = 0.5
+    backgrounds: str | None = None
+    #: The shipped models' own share of frames over real backdrops.
+    backdrop_share: float = 0.75
     freeze: int | None = None
     lr0: float = 0.0005
     warmup_epochs: float = 1.0
@@ -73,7 +78,7 @@ class FinetuneRecipe:
         if not 0.0 <= self.rehearsal_share < 1.0:
             raise ValueError(f"--rehearsal-share {self.rehearsal_share} must lie in 0..1 (1 would train on no "
                              "frame of yours)")
-        for name in ("far_share", "own_paint_share"):
+        for name in ("far_share", "own_paint_share", "backdrop_share"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise ValueError(f"{name.replace('_', ' ')} {getattr(self, name)} must lie in 0..1")
         if self.copies < 0:
