@@ -4,8 +4,10 @@
 fine-tune on the 6 calibration shots and test on the 8 walk frames, then the other way round. Each group runs the
 whole ``poles finetune`` (its --minutes on every core), and the shipped model, the fine-tune and the chosen blend are
 compared on the held-out group, on fresh rendered sets (everything, far poles) and, where
-``../shared/real-backgrounds`` is present, on a set drawn over real frames half of it back-lit; one table.
-Usage: python benchmarks/bench_finetune.py real [--model accurate|robot] [--minutes 15] [--frames 200] [--rehearsal-share S] [--backgrounds FOLDER] [--freeze N]
+``../shared/real-backgrounds`` is present, on a set drawn over its frames of other rooms than the Dutch Nao Team's
+field, half of it back-lit; one table. ``--own-field`` rehearses over that field's frames (``poles finetune
+--backgrounds``), standing in for a team's own field without poles.
+Usage: python benchmarks/bench_finetune.py real [--model accurate|robot] [--minutes 15] [--epochs N] [--frames 200] [--rehearsal-share S] [--own-field] [--freeze N]
        [--lr0 L] [--out FOLDER]
 
 ``rendered`` mode (the default): how good is a user's model after minutes of CPU training, from scratch against from
@@ -84,6 +86,24 @@ SHARED = Path(__file__).resolve().parents[1].parent / "shared"
 GROUPS = {"calibration shots": "calib_", "walk frames": "walk_"}
 
 
+#: The frames of ``../shared/real-backgrounds`` from one team's field (the Dutch Nao Team's); the rest are other rooms.
+OWN_FIELD_PREFIX = "Datasets__NaoLeague"
+
+
+def split_backgrounds(backgrounds: Path, out: Path) -> tuple[Path, tuple[Path, ...]]:
+    """``backgrounds``' own-field frames linked into the folder ``out`` (for ``--backgrounds``), and its other rooms'
+    frames."""
+    from detector.synth.backdrops import scan_backdrops
+
+    frames = scan_backdrops(backgrounds)
+    shutil.rmtree(out, ignore_errors=True)
+    out.mkdir(parents=True)
+    for frame in frames:
+        if frame.name.startswith(OWN_FIELD_PREFIX):
+            (out / frame.name).symlink_to(frame.resolve())
+    return out, tuple(frame for frame in frames if not frame.name.startswith(OWN_FIELD_PREFIX))
+
+
 def group_export(real: Path, train_prefix: str, test_prefix: str, out: Path) -> Path:
     """A Roboflow-layout export of ``real``'s frames: those named ``train_prefix*`` in train, ``test_prefix*`` in test
     (no valid split: ``poles finetune`` makes one, as for a team's export without one)."""
@@ -103,29 +123,33 @@ def real_mode(argv: list[str]) -> None:
     from detector.finetune.judge import REFERENCE, compare_models, render_set
     from detector.finetune.pipeline import run_finetune
     from detector.finetune.recipe import STARTING_MODELS, FinetuneRecipe
-    from detector.synth.backdrops import scan_backdrops
-
     parser = argparse.ArgumentParser(prog="bench_finetune.py real")
     defaults = FinetuneRecipe()
     parser.add_argument("--model", choices=STARTING_MODELS, default=defaults.model)
     parser.add_argument("--minutes", type=float, default=defaults.minutes)
+    parser.add_argument("--epochs", type=int, help="at most this many epochs (default: the model's)")
     parser.add_argument("--frames", type=int, default=200, help="frames per rendered set")
-    parser.add_argument("--rehearsal-share", type=float, default=defaults.rehearsal_share)
+    parser.add_argument("--rehearsal-share", type=float, help="default: the model's")
     parser.add_argument("--freeze", type=int, default=defaults.freeze)
     parser.add_argument("--lr0", type=float, default=defaults.lr0)
     parser.add_argument("--warmup-epochs", type=float, default=defaults.warmup_epochs)
-    parser.add_argument("--backgrounds", type=Path,
-                        help="frames without poles for the rehearsal frames' backdrops (e.g. ../shared/real-backgrounds)")
+    parser.add_argument("--own-field", action="store_true",
+                        help="rehearse over ../shared/real-backgrounds' frames of the Dutch Nao Team's field")
     parser.add_argument("--out", type=Path, help="keep every run here (default: a temporary folder)")
     args = parser.parse_args(argv)
-    real = SHARED / "real-poles"
+    real, backgrounds = SHARED / "real-poles", SHARED / "real-backgrounds" / "images"
     if not (real / "data.yaml").is_file():
         sys.exit(f"{real}: not here - the real mode needs ../shared/real-poles")
-    recipe = FinetuneRecipe(model=args.model, minutes=args.minutes, rehearsal_share=args.rehearsal_share,
-                            backgrounds=str(args.backgrounds) if args.backgrounds else None, freeze=args.freeze,
-                            lr0=args.lr0, warmup_epochs=args.warmup_epochs, evaluation_frames=args.frames)
+    if args.own_field and not backgrounds.is_dir():
+        sys.exit(f"{backgrounds}: not here - --own-field needs ../shared/real-backgrounds")
     with tempfile.TemporaryDirectory() as tmp:
         root = args.out or Path(tmp)
+        own_field, other_rooms = split_backgrounds(backgrounds, root / "own-field") if backgrounds.is_dir() else (
+            None, ())
+        recipe = FinetuneRecipe(model=args.model, minutes=args.minutes, epochs=args.epochs,
+                                rehearsal_share=args.rehearsal_share,
+                                backgrounds=str(own_field) if args.own_field else None, freeze=args.freeze,
+                                lr0=args.lr0, warmup_epochs=args.warmup_epochs, evaluation_frames=args.frames)
         rows, timings = [], {}
         for train_group, test_group in (tuple(GROUPS), tuple(reversed(GROUPS))):
             name = f"{train_group} -> {test_group}"
@@ -135,17 +159,17 @@ def real_mode(argv: list[str]) -> None:
             results = run_finetune(export, folder / "run", recipe)
             timings[name] = results["seconds"]
             group_rows = results["evaluate"]["rows"]
-            backgrounds = SHARED / "real-backgrounds" / "images"
-            if backgrounds.is_dir():
+            if other_rooms:
                 models = {REFERENCE: recipe.start.weights, "fine-tune": Path(results["train"]["weights"]),
                           group_rows[-1]["model"]: Path(results["blend"]["weights"])}
-                backdrop_set = render_set(folder / "backdrops", args.frames, 0.0, 9103, scan_backdrops(backgrounds),
+                backdrop_set = render_set(folder / "backdrops", args.frames, 0.0, 9103, other_rooms,
                                           backlight_share=0.5)
-                group_rows += compare_models(models, {"over real frames, half back-lit": (backdrop_set, "test")},
+                group_rows += compare_models(models, {"over other rooms, half back-lit": (backdrop_set, "test")},
                                              folder / "backdrops-evaluation", results["evaluate"]["conf"],
                                              recipe.training_size)
             rows += [{"group": name, **row} for row in group_rows]
-        print(f"\nrecipe: {json.dumps(recipe.__dict__)}")
+        settings = {**recipe.__dict__, "rendered_share": recipe.rendered_share, "epoch_cap": recipe.epoch_cap}
+        print(f"\nrecipe: {json.dumps(settings)}")
         print(f"{'group':<34} {'set':<32} {'model':<10} {'TP':>4} {'FP':>4} {'FN':>4} {'prec':>7} {'recall':>7} "
               f"{'F1':>6} {'F1 change (95 %)':>22} {'recall <16px':>13}")
         for r in rows:
@@ -158,7 +182,7 @@ def real_mode(argv: list[str]) -> None:
         for name, seconds in timings.items():
             print(f"{name}: " + ", ".join(f"{stage} {s:.0f} s" for stage, s in seconds.items())
                   + f"; total {sum(seconds.values()) / 60:.1f} min")
-        (root / "bench_finetune_real.json").write_text(json.dumps({"recipe": recipe.__dict__, "rows": rows,
+        (root / "bench_finetune_real.json").write_text(json.dumps({"recipe": settings, "rows": rows,
                                                                    "seconds": timings}, indent=1))
 
 

@@ -13,9 +13,10 @@ import pytest
 
 from detector.cli import main
 from detector.datasets.io import load_dataset
+from detector.finetune.blend import frame_errors, frames_against, pick_share
 from detector.finetune.intake import prepare_export
 from detector.finetune.pipeline import run_finetune
-from detector.finetune.recipe import BLEND_SHARES, FinetuneRecipe
+from detector.finetune.recipe import BLEND_SHARES, DEFAULT_BLEND_SHARE, FinetuneRecipe
 from detector.stages import StageFailed, StageLedger
 from detector.synth.generate import SynthJob, generate_dataset
 from detector.synth.scene import SceneConfig
@@ -83,13 +84,37 @@ def test_the_robot_model_is_fine_tuned_and_shipped_as_the_robot_model_is(export,
     assert LandmarkDetector(model).any_input_size  # runs on the horizon band, as the shipped robot model does
 
 
-def test_the_blend_is_the_best_valid_f1_a_tie_going_to_the_share_nearest_a_half(finished):
+def test_the_blend_ships_half_and_half_unless_its_valid_frames_show_another_share_better(finished):
     _, results, _ = finished
-    shares = results["blend"]["shares"]
-    assert [row["share"] for row in shares] == list(BLEND_SHARES)
-    best = max(row["f1"] for row in shares)
-    tied = [row["share"] for row in shares if row["f1"] == best]
-    assert results["blend"]["chosen"] == min(tied, key=lambda share: abs(share - 0.5))
+    shares = {row["share"]: row for row in results["blend"]["shares"]}
+    assert list(shares) == list(BLEND_SHARES)
+    for row in shares.values():
+        assert (row["frames_better"], row["frames_worse"]) == frames_against(
+            row["frame_errors"], shares[DEFAULT_BLEND_SHARE]["frame_errors"])
+        assert sum(row["frame_errors"].values()) == row["fp"] + row["fn"]
+    assert results["blend"]["chosen"] == pick_share(list(shares.values()))
+
+
+def _share(share: float, f1: float, better: int, worse: int) -> dict:
+    return {"share": share, "f1": f1, "frames_better": better, "frames_worse": worse}
+
+
+@pytest.mark.parametrize("better, worse, chosen", [(1, 0, 0.5), (4, 0, 0.5), (5, 0, 1.0), (6, 1, 0.5), (7, 1, 1.0)])
+def test_another_share_needs_a_sign_test_at_five_percent_over_the_frames_that_differ(better, worse, chosen):
+    scores = [_share(0.5, 0.80, 0, 0), _share(1.0, 0.95, better, worse)]
+    assert pick_share(scores) == chosen
+
+
+def test_among_the_shares_that_pass_the_best_valid_f1_wins_and_a_broken_fine_tune_falls_back_to_the_shipped_model():
+    assert pick_share([_share(0.0, 0.7, 0, 9), _share(0.5, 0.6, 0, 0), _share(0.75, 0.8, 6, 0),
+                       _share(1.0, 0.9, 8, 0)]) == 1.0
+    assert pick_share([_share(0.0, 0.9, 6, 0), _share(0.5, 0.5, 0, 0), _share(1.0, 0.2, 0, 6)]) == 0.0
+
+
+def test_frames_are_counted_better_or_worse_by_their_errors():
+    default = {"a.jpg": 1, "b.jpg": 0, "c.jpg": 2}
+    assert frames_against({"a.jpg": 0, "b.jpg": 0, "c.jpg": 3}, default) == (1, 1)
+    assert frame_errors([{"image": "a.jpg", "tp": 1, "fp": 1, "fn": 2}]) == {"a.jpg": 3}
 
 
 def test_a_rerun_skips_every_finished_stage_and_redoes_what_was_lost(export, finished, tmp_path):
@@ -187,6 +212,16 @@ def test_the_recipe_refuses_a_share_that_leaves_no_frame_of_yours_and_shares_the
     recipe = FinetuneRecipe(minutes=15)
     assert recipe.training_minutes(1.0) == pytest.approx(14.0 - recipe.after_training_minutes)
     assert FinetuneRecipe(minutes=0.3).training_minutes(5.0) == 0.3
+
+
+def test_each_starting_model_brings_its_measured_recipe_and_a_flag_overrides_it():
+    robot = FinetuneRecipe(model="robot")
+    assert (robot.rendered_share, robot.epoch_cap, robot.rehearsal_frames(88)) == (0.75, 40, 264)
+    assert (FinetuneRecipe().rendered_share, FinetuneRecipe().epoch_cap) == (0.5, None)
+    told = FinetuneRecipe(model="robot", rehearsal_share=0.0, epochs=5)
+    assert (told.rendered_share, told.epoch_cap, told.rehearsal_frames(88)) == (0.0, 5, 0)
+    with pytest.raises(ValueError, match="--epochs"):
+        FinetuneRecipe(epochs=0)
 
 
 def test_training_interrupted_after_an_epoch_resumes_from_it(export, tmp_path, monkeypatch):

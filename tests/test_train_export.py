@@ -14,7 +14,7 @@ import pytest
 from detector.cli import main
 from detector.training.train import TrainSettings, summarise_run, train_model
 from detector.training.curves import read_results
-from detector.model_files import read_info
+from detector.model_files import read_checkpoint, read_info
 from export.onnx_export import export_onnx
 from export.quantize import decode_head_nodes
 from export.run import ExportJob, ExportMismatch, run_export
@@ -185,6 +185,14 @@ def test_a_run_that_fails_leaves_only_what_resume_can_use(saved_an_epoch, synth_
     with pytest.raises(RuntimeError, match="device=0"):
         train_model(synth_dataset, tmp_path / "run", TrainSettings(model="yolov8n-seg", epochs=1, imgsz=64))
     assert (tmp_path / "run").exists() == saved_an_epoch
+
+
+def test_a_time_capped_run_stops_after_max_epochs_when_they_come_first(synth_dataset, tmp_path):
+    settings = TrainSettings(model="yolov8n-seg", epochs=1000, imgsz=64, batch=8, time_hours=1.0, max_epochs=2)
+    train_model(synth_dataset, tmp_path / "run", settings)
+    results = read_results(tmp_path / "run" / "results.csv")
+    assert results["epoch"] == [1.0, 2.0]
+    assert read_checkpoint(tmp_path / "run" / "weights" / "last.pt")["epoch"] == -1  # finished, not cut off
 
 
 def test_an_interrupted_run_resumes_where_it_stopped(synth_dataset, tmp_path, monkeypatch):

@@ -24,12 +24,15 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     finetune.add_argument("--minutes", type=positive_number, default=DEFAULTS.minutes,
                           help=f"the whole job's time on this machine (default {DEFAULTS.minutes:g}); training "
                                "gets what preparing and evaluating leave")
+    finetune.add_argument("--epochs", type=whole_number(1),
+                          help="at most this many training epochs within the minutes (default: as many as the "
+                               "minutes allow for the accurate model, 40 for the robot one)")
     finetune.add_argument("--rename", action="append", metavar="OLD=NEW",
                           help="read the export's class OLD as landmark NEW (e.g. pink-blue=pb); repeat for each")
-    finetune.add_argument("--rehearsal-share", type=finite_number, default=DEFAULTS.rehearsal_share,
+    finetune.add_argument("--rehearsal-share", type=finite_number,
                           help="share of the training frames rendered in your paint: far poles, frames without "
-                               f"poles, look-alikes your export may not show (default {DEFAULTS.rehearsal_share:g}; "
-                               "0: your frames alone)")
+                               "poles, look-alikes your export may not show (default 0.5 for the accurate model, "
+                               "0.75 for the robot one; 0: your frames alone)")
     finetune.add_argument("--backgrounds", type=Path,
                           help="frames of your own field without poles, from the robot's camera: "
                                f"{DEFAULTS.backdrop_share:.0%} of the rendered frames are drawn over them, so the "
@@ -56,7 +59,8 @@ def _finetune(args: argparse.Namespace) -> int:
     from detector.finetune.pipeline import run_finetune
     from detector.finetune.report import changes
 
-    recipe = FinetuneRecipe(model=args.model, minutes=args.minutes, copies=args.copies, rehearsal_share=args.rehearsal_share,
+    recipe = FinetuneRecipe(model=args.model, minutes=args.minutes, epochs=args.epochs, copies=args.copies,
+                            rehearsal_share=args.rehearsal_share,
                             backgrounds=str(args.backgrounds) if args.backgrounds else None, freeze=args.freeze,
                             lr0=args.lr0, imgsz=args.imgsz, seed=args.seed,
                             evaluation_frames=args.evaluation_frames)

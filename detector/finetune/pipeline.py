@@ -15,7 +15,7 @@ from pathlib import Path
 from detector.atomic import write_json
 from detector.console import make_console
 from detector.finetune.judge import REFERENCE, RENDERED_SETS, compare_models, render_set
-from detector.finetune.recipe import FinetuneRecipe
+from detector.finetune.recipe import DEFAULT_BLEND_SHARE, SIGN_TEST_LEVEL, FinetuneRecipe
 from detector.stages import StageLedger, file_fingerprint, stage_key
 from detector.synth.backdrops import scan_backdrops
 from naoslam.shipped import OPERATING_CONF_KEY
@@ -82,14 +82,15 @@ def _stages(ledger: StageLedger, export: Path, out: Path, recipe: FinetuneRecipe
     mix_key = stage_key(augment=augment_key, rehearsal=rehearsal_key)
     results["mix"] = ledger.run("mix", mix_key, [mixed / "data.yaml"],
                                 lambda: _mix(augmented, rehearsal if frames else None, mixed))
-    training = {k: v for k, v in asdict(recipe).items() if k != "evaluation_frames"}
+    training = {**{k: v for k, v in asdict(recipe).items() if k != "evaluation_frames"},
+                "epoch_cap": recipe.epoch_cap, "rendered_share": recipe.rendered_share}
     train_key = stage_key(mix=mix_key, recipe=training, start=file_fingerprint(recipe.start.weights))
     spent = sum(record.seconds for record in ledger.timings()) / 60
     run = out / "train"
     results["train"] = ledger.run("train", train_key, [run / "weights" / "last.pt"],
                                   lambda: _train(train_key, mixed, run, recipe, spent))
     conf = float(_starting_metadata(recipe)[OPERATING_CONF_KEY])
-    blend_key = stage_key(train=train_key, conf=conf)
+    blend_key = stage_key(train=train_key, conf=conf, default_share=DEFAULT_BLEND_SHARE, level=SIGN_TEST_LEVEL)
     results["blend"] = ledger.run("blend", blend_key, [out / "blend"], lambda: _blend(
         run / "weights" / "last.pt", data, out / "blend", conf, recipe))
     export_key = stage_key(blend=blend_key)
@@ -158,11 +159,12 @@ def _train(key: str, data: Path, run: Path, recipe: FinetuneRecipe, spent_minute
         shutil.rmtree(run)
     key_file.write_text(key)
     minutes = recipe.training_minutes(spent_minutes)
-    console.print(f"training for {minutes:.1f} minutes ({spent_minutes:.1f} spent preparing, "
+    cap = f" or {recipe.epoch_cap} epochs, whichever comes first" if recipe.epoch_cap else ""
+    console.print(f"training for {minutes:.1f} minutes{cap} ({spent_minutes:.1f} spent preparing, "
                   f"{recipe.after_training_minutes:.1f} kept for what follows)")
     settings = TrainSettings(model=recipe.start.architecture, epochs=1000, imgsz=recipe.training_size,
                              batch=recipe.batch, patience=1000, seed=recipe.seed, time_hours=minutes / 60,
-                             hyperparameters=recipe.hyperparameters())
+                             max_epochs=recipe.epoch_cap, hyperparameters=recipe.hyperparameters())
     if not finished:
         train_model(data, run, settings, weights=recipe.start.weights, resume=same_run)
     return {**summarise_run(run), "minutes": round(minutes, 2), "curves": str(run / "training_curves.png"),

@@ -11,19 +11,27 @@ from pathlib import Path
 
 #: Blend shares tried on the export's valid split: the fine-tune's share, 0 being the shipped model.
 BLEND_SHARES = (0.0, 0.25, 0.5, 0.75, 1.0)
+#: The share shipped unless the valid split shows another to be better frame by frame (docs/finetune.md).
+DEFAULT_BLEND_SHARE = 0.5
+#: The one-sided sign test's level for that showing: at least five frames better and none worse.
+SIGN_TEST_LEVEL = 0.05
 
 
 @dataclass(frozen=True)
 class StartingModel:
     """A shipped model a team fine-tunes: the ``LandmarkDetector`` profile that runs it, the width it was trained at,
-    its backbone's layer count (what ``freeze`` keeps by default) and how it is exported (the accurate model as FP32
-    and INT8 at a fixed input; the robot model as FP32 only, which runs faster than INT8 at the Atom's instruction
-    set, with a dynamic input for the horizon band), and the file name the fine-tune is delivered under."""
+    its backbone's layer count (what ``freeze`` keeps by default), its measured recipe defaults (the share of
+    rendered frames, and an epoch cap or None for as many as the minutes allow; docs/finetune.md) and how it is
+    exported (the accurate model as FP32 and INT8 at a fixed input; the robot model as FP32 only, which runs faster
+    than INT8 at the Atom's instruction set, with a dynamic input for the horizon band), and the file name the
+    fine-tune is delivered under."""
 
     profile: str
     architecture: str
     imgsz: int
     backbone_layers: int
+    rehearsal_share: float
+    epochs: int | None
     int8: bool
     dynamic: bool
     finetuned_name: str
@@ -37,10 +45,10 @@ class StartingModel:
 
 
 #: The shipped models ``poles finetune --model`` starts from.
-STARTING_MODELS = {"accurate": StartingModel("accurate", "yolov8n-seg", 640, 10, int8=True, dynamic=False,
-                                             finetuned_name="poles-finetuned.onnx"),
-                   "robot": StartingModel("robot", "robot-p4-seg", 320, 8, int8=False, dynamic=True,
-                                          finetuned_name="poles-robot-finetuned.onnx")}
+STARTING_MODELS = {"accurate": StartingModel("accurate", "yolov8n-seg", 640, 10, rehearsal_share=0.5, epochs=None,
+                                             int8=True, dynamic=False, finetuned_name="poles-finetuned.onnx"),
+                   "robot": StartingModel("robot", "robot-p4-seg", 320, 8, rehearsal_share=0.75, epochs=40,
+                                          int8=False, dynamic=True, finetuned_name="poles-robot-finetuned.onnx")}
 
 
 @dataclass(frozen=True)
@@ -49,13 +57,15 @@ class FinetuneRecipe:
     ``rehearsal_share``: the share of the training frames that are rendered (``own_paint_share`` of them in the
     team's paint, the rest in the renderer's own, and ``far_share`` of them with far poles only; ``backdrop_share`` of
     them drawn over the frames in ``backgrounds``, a folder of the team's own frames without poles, when one is given);
-    ``freeze``: the first layers left as shipped (None: the starting
-    model's backbone); ``lr0``/``warmup_epochs``: AdamW's step and its ramp; ``imgsz`` None: the starting model's."""
+    ``epochs``: at most this many training epochs within the minutes; ``freeze``: the first layers left as shipped;
+    ``lr0``/``warmup_epochs``: AdamW's step and its ramp. ``rehearsal_share``, ``epochs``, ``freeze`` and ``imgsz``
+    left None take the starting model's."""
 
     model: str = "accurate"
     minutes: float = 15.0
+    epochs: int | None = None
     copies: int = 7
-    rehearsal_share: float = 0.5
+    rehearsal_share: float | None = None
     far_share: float = 0.5
     own_paint_share: float = 0.5
     backgrounds: str | None = None
@@ -75,12 +85,14 @@ class FinetuneRecipe:
             raise ValueError(f"--model {self.model!r} is not one of {', '.join(STARTING_MODELS)}")
         if not (math.isfinite(self.minutes) and self.minutes > 0):
             raise ValueError(f"--minutes {self.minutes} must be a positive number")
-        if not 0.0 <= self.rehearsal_share < 1.0:
+        if self.rehearsal_share is not None and not 0.0 <= self.rehearsal_share < 1.0:
             raise ValueError(f"--rehearsal-share {self.rehearsal_share} must lie in 0..1 (1 would train on no "
                              "frame of yours)")
         for name in ("far_share", "own_paint_share", "backdrop_share"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise ValueError(f"{name.replace('_', ' ')} {getattr(self, name)} must lie in 0..1")
+        if self.epochs is not None and self.epochs < 1:
+            raise ValueError(f"--epochs {self.epochs} must be at least 1")
         if self.copies < 0:
             raise ValueError(f"--copies {self.copies} must be 0 or more")
         if self.freeze is not None and self.freeze < 0:
@@ -99,13 +111,23 @@ class FinetuneRecipe:
         return self.imgsz or self.start.imgsz
 
     @property
+    def rendered_share(self) -> float:
+        """The share of the training frames that are rendered: ``rehearsal_share``, else the starting model's."""
+        return self.start.rehearsal_share if self.rehearsal_share is None else self.rehearsal_share
+
+    @property
+    def epoch_cap(self) -> int | None:
+        """At most this many epochs within the minutes: ``epochs``, else the starting model's (None: no cap)."""
+        return self.start.epochs if self.epochs is None else self.epochs
+
+    @property
     def frozen_layers(self) -> int:
         """Layers kept as shipped: ``freeze``, else the starting model's backbone."""
         return self.start.backbone_layers if self.freeze is None else self.freeze
 
     def rehearsal_frames(self, real_training_frames: int) -> int:
-        """Rendered frames to mix with ``real_training_frames`` (the augmented export) to reach ``rehearsal_share``."""
-        return math.ceil(real_training_frames * self.rehearsal_share / (1.0 - self.rehearsal_share))
+        """Rendered frames to mix with ``real_training_frames`` (the augmented export) to reach ``rendered_share``."""
+        return math.ceil(real_training_frames * self.rendered_share / (1.0 - self.rendered_share))
 
     @property
     def after_training_minutes(self) -> float:

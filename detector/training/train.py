@@ -14,6 +14,7 @@ import shutil
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
+from functools import partial
 from pathlib import Path
 
 from ultralytics import YOLO
@@ -65,6 +66,9 @@ class TrainSettings:
     workers: int = defaults.WORKERS
     cache: bool = True
     time_hours: float | None = None
+    #: With ``time_hours``: at most this many epochs, the learning-rate schedule spanning the epochs that fit in the
+    #: time or these, whichever are fewer (Ultralytics alone stretches the epochs to fill the time).
+    max_epochs: int | None = None
     #: Ultralytics' device string: "cpu" (default), "0", "0,1" (DDP across GPUs) or "mps".
     device: str = defaults.DEVICE
     #: Let ``ThreadTuner`` pick the thread count by timing batches (``--threads auto``); off by default (docs/training.md).
@@ -82,6 +86,8 @@ class TrainSettings:
                 raise ValueError(f"--{name} must be at least 1 (got {getattr(self, name)})")
         if self.time_hours is not None and not (math.isfinite(self.time_hours) and self.time_hours > 0):
             raise ValueError(f"--time {self.time_hours} must be a positive number of hours")
+        if self.max_epochs is not None and self.max_epochs < 1:
+            raise ValueError(f"--epochs {self.max_epochs} must be at least 1")
         if self.imgsz % 32:
             raise ValueError(f"--imgsz {self.imgsz} is not a multiple of the model stride 32 (try {self.imgsz // 32 * 32 or 32})")
 
@@ -123,13 +129,22 @@ def use_all_cores(threads: int | None = None) -> int:
 
 
 class CpuSegmentationTrainer(SegmentationTrainer):
-    """Ultralytics' segmentation trainer, except that the data-loader worker count asked for is kept on a CPU."""
+    """Ultralytics' segmentation trainer, except that the data-loader worker count asked for is kept on a CPU, and
+    that a time-capped run stops after ``max_epochs`` when those come first."""
 
-    def __init__(self, cfg=DEFAULT_CFG, overrides: dict | None = None, _callbacks=None):
+    def __init__(self, cfg=DEFAULT_CFG, overrides: dict | None = None, _callbacks=None, max_epochs: int | None = None):
         workers = (overrides or {}).get("workers")
         super().__init__(cfg=cfg, overrides=overrides, _callbacks=_callbacks)
         if workers is not None:
             self.args.workers = workers
+        self.max_epochs = max_epochs
+
+    def _setup_scheduler(self) -> None:
+        """Ultralytics' schedule, over at most ``max_epochs``: in time mode it re-estimates the epochs that fill the
+        time after every epoch and calls this, then stops once the epoch count is reached."""
+        if self.max_epochs is not None:
+            self.epochs = self.args.epochs = min(self.epochs, self.max_epochs)
+        super()._setup_scheduler()
 
 
 def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | None = None,
@@ -150,7 +165,7 @@ def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | 
         last = out / "weights" / "last.pt"
         data_yaml = _resumable_data(last)  # before Ultralytics sees the path: it would look for a missing file online
         _train(YOLO(str(last)), tuner, resume=True, data=data_yaml, workers=settings.workers,
-               trainer=CpuSegmentationTrainer)
+               trainer=partial(CpuSegmentationTrainer, max_epochs=settings.max_epochs))
     else:
         if weights and not Path(weights).is_file():
             raise FileNotFoundError(f"{weights}: no such checkpoint (nothing is downloaded: pass a local .pt)")
@@ -166,7 +181,7 @@ def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | 
             data_yaml = training_view(dataset, out / "dataset")
             model = YOLO(str(weights) if weights else architecture_yaml(settings.model), task="segment")
             options = asdict(settings)
-            for name in ("model", "threads", "adaptive_threads"):
+            for name in ("model", "threads", "adaptive_threads", "max_epochs"):
                 options.pop(name)
             options["time"] = options.pop("time_hours")
             teacher = options.pop("teacher")
@@ -174,7 +189,8 @@ def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | 
                 options["distill_model"] = str(teacher)
             options.update(options.pop("hyperparameters"))
             _train(model, tuner, data=str(data_yaml), project=str(out.parent), name=out.name, exist_ok=True,
-                   amp=False, plots=False, deterministic=True, trainer=CpuSegmentationTrainer, **options)
+                   amp=False, plots=False, deterministic=True,
+                   trainer=partial(CpuSegmentationTrainer, max_epochs=settings.max_epochs), **options)
     plot_training_curves(out / "results.csv", out / "training_curves.png")
     return out
 
