@@ -90,18 +90,22 @@ GROUPS = {"calibration shots": "calib_", "walk frames": "walk_"}
 OWN_FIELD_PREFIX = "Datasets__NaoLeague"
 
 
-def split_backgrounds(backgrounds: Path, out: Path) -> tuple[Path, tuple[Path, ...]]:
-    """``backgrounds``' own-field frames linked into the folder ``out`` (for ``--backgrounds``), and its other rooms'
-    frames."""
+def split_backgrounds(backgrounds: Path) -> tuple[tuple[Path, ...], tuple[Path, ...]]:
+    """``backgrounds``' frames of the own field, and of the other rooms."""
     from detector.synth.backdrops import scan_backdrops
 
     frames = scan_backdrops(backgrounds)
+    own = tuple(frame for frame in frames if frame.name.startswith(OWN_FIELD_PREFIX))
+    return own, tuple(frame for frame in frames if frame not in own)
+
+
+def linked_folder(frames: tuple[Path, ...], out: Path) -> Path:
+    """A fresh folder ``out`` of links to ``frames`` (what ``--backgrounds`` reads)."""
     shutil.rmtree(out, ignore_errors=True)
     out.mkdir(parents=True)
     for frame in frames:
-        if frame.name.startswith(OWN_FIELD_PREFIX):
-            (out / frame.name).symlink_to(frame.resolve())
-    return out, tuple(frame for frame in frames if not frame.name.startswith(OWN_FIELD_PREFIX))
+        (out / frame.name).symlink_to(frame.resolve())
+    return out
 
 
 def group_export(real: Path, train_prefix: str, test_prefix: str, out: Path) -> Path:
@@ -123,6 +127,7 @@ def real_mode(argv: list[str]) -> None:
     from detector.finetune.judge import REFERENCE, compare_models, render_set
     from detector.finetune.pipeline import run_finetune
     from detector.finetune.recipe import STARTING_MODELS, FinetuneRecipe
+
     parser = argparse.ArgumentParser(prog="bench_finetune.py real")
     defaults = FinetuneRecipe()
     parser.add_argument("--model", choices=STARTING_MODELS, default=defaults.model)
@@ -144,11 +149,11 @@ def real_mode(argv: list[str]) -> None:
         sys.exit(f"{backgrounds}: not here - --own-field needs ../shared/real-backgrounds")
     with tempfile.TemporaryDirectory() as tmp:
         root = args.out or Path(tmp)
-        own_field, other_rooms = split_backgrounds(backgrounds, root / "own-field") if backgrounds.is_dir() else (
-            None, ())
+        own_field, other_rooms = split_backgrounds(backgrounds) if backgrounds.is_dir() else ((), ())
         recipe = FinetuneRecipe(model=args.model, minutes=args.minutes, epochs=args.epochs,
                                 rehearsal_share=args.rehearsal_share,
-                                backgrounds=str(own_field) if args.own_field else None, freeze=args.freeze,
+                                backgrounds=str(linked_folder(own_field, root / "own-field")) if args.own_field
+                                else None, freeze=args.freeze,
                                 lr0=args.lr0, warmup_epochs=args.warmup_epochs, evaluation_frames=args.frames)
         rows, timings = [], {}
         for train_group, test_group in (tuple(GROUPS), tuple(reversed(GROUPS))):
@@ -168,7 +173,7 @@ def real_mode(argv: list[str]) -> None:
                                              folder / "backdrops-evaluation", results["evaluate"]["conf"],
                                              recipe.training_size)
             rows += [{"group": name, **row} for row in group_rows]
-        settings = {**recipe.__dict__, "rendered_share": recipe.rendered_share, "epoch_cap": recipe.epoch_cap}
+        settings = recipe.settings()
         print(f"\nrecipe: {json.dumps(settings)}")
         print(f"{'group':<34} {'set':<32} {'model':<10} {'TP':>4} {'FP':>4} {'FN':>4} {'prec':>7} {'recall':>7} "
               f"{'F1':>6} {'F1 change (95 %)':>22} {'recall <16px':>13}")

@@ -217,6 +217,8 @@ def test_the_recipe_refuses_a_share_that_leaves_no_frame_of_yours_and_shares_the
 def test_each_starting_model_brings_its_measured_recipe_and_a_flag_overrides_it():
     robot = FinetuneRecipe(model="robot")
     assert (robot.rendered_share, robot.epoch_cap, robot.rehearsal_frames(88)) == (0.75, 40, 264)
+    assert {"rehearsal_share": None, "rendered_share": 0.75, "epoch_cap": 40, "frozen_layers": 8}.items() <= \
+        robot.settings().items()
     assert (FinetuneRecipe().rendered_share, FinetuneRecipe().epoch_cap) == (0.5, None)
     told = FinetuneRecipe(model="robot", rehearsal_share=0.0, epochs=5)
     assert (told.rendered_share, told.epoch_cap, told.rehearsal_frames(88)) == (0.0, 5, 0)

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import shutil
 import time
-from dataclasses import asdict
 from pathlib import Path
 
 from detector.atomic import write_json
@@ -40,7 +39,7 @@ def run_finetune(export: Path, out: Path, recipe: FinetuneRecipe, renames: dict[
 
     results["report"] = str(write_report(out / "report.html", results, ledger.timings()))
     write_json(out / "metrics.json", {key: value for key, value in results.items() if key != "recipe"}
-               | {"recipe": asdict(recipe)})
+               | {"recipe": recipe.settings()})
     return results
 
 
@@ -65,7 +64,7 @@ def _stages(ledger: StageLedger, export: Path, out: Path, recipe: FinetuneRecipe
     from detector.finetune.intake import prepare_export
 
     data, augmented, rehearsal, mixed = (out / name for name in ("export", "augmented", "rehearsal", "mixed"))
-    results: dict = {"recipe": asdict(recipe)}
+    results: dict = {"recipe": recipe.settings()}
     key = stage_key(export=_export_fingerprint(export), renames=renames, seed=recipe.seed)
     results["export"] = ledger.run("export", key, [data / "data.yaml"],
                                    lambda: prepare_export(export, data, renames, recipe.seed))
@@ -82,8 +81,7 @@ def _stages(ledger: StageLedger, export: Path, out: Path, recipe: FinetuneRecipe
     mix_key = stage_key(augment=augment_key, rehearsal=rehearsal_key)
     results["mix"] = ledger.run("mix", mix_key, [mixed / "data.yaml"],
                                 lambda: _mix(augmented, rehearsal if frames else None, mixed))
-    training = {**{k: v for k, v in asdict(recipe).items() if k != "evaluation_frames"},
-                "epoch_cap": recipe.epoch_cap, "rendered_share": recipe.rendered_share}
+    training = {k: v for k, v in recipe.settings().items() if k != "evaluation_frames"}
     train_key = stage_key(mix=mix_key, recipe=training, start=file_fingerprint(recipe.start.weights))
     spent = sum(record.seconds for record in ledger.timings()) / 60
     run = out / "train"

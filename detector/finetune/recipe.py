@@ -6,7 +6,7 @@ deciding runs ended). Torch-free, so the command line builds its parser without 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 #: Blend shares tried on the export's valid split: the fine-tune's share, 0 being the shipped model.
@@ -124,6 +124,11 @@ class FinetuneRecipe:
     def frozen_layers(self) -> int:
         """Layers kept as shipped: ``freeze``, else the starting model's backbone."""
         return self.start.backbone_layers if self.freeze is None else self.freeze
+
+    def settings(self) -> dict:
+        """Every field, and the values the ones left None resolve to for the starting model: what a run records."""
+        return {**asdict(self), "rendered_share": self.rendered_share, "epoch_cap": self.epoch_cap,
+                "frozen_layers": self.frozen_layers, "training_size": self.training_size}
 
     def rehearsal_frames(self, real_training_frames: int) -> int:
         """Rendered frames to mix with ``real_training_frames`` (the augmented export) to reach ``rendered_share``."""

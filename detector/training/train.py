@@ -164,8 +164,8 @@ def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | 
     if resume:
         last = out / "weights" / "last.pt"
         data_yaml = _resumable_data(last)  # before Ultralytics sees the path: it would look for a missing file online
-        _train(YOLO(str(last)), tuner, resume=True, data=data_yaml, workers=settings.workers,
-               trainer=partial(CpuSegmentationTrainer, max_epochs=settings.max_epochs))
+        _train(YOLO(str(last)), tuner, max_epochs=settings.max_epochs, resume=True, data=data_yaml,
+               workers=settings.workers)
     else:
         if weights and not Path(weights).is_file():
             raise FileNotFoundError(f"{weights}: no such checkpoint (nothing is downloaded: pass a local .pt)")
@@ -188,20 +188,20 @@ def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | 
             if teacher:
                 options["distill_model"] = str(teacher)
             options.update(options.pop("hyperparameters"))
-            _train(model, tuner, data=str(data_yaml), project=str(out.parent), name=out.name, exist_ok=True,
-                   amp=False, plots=False, deterministic=True,
-                   trainer=partial(CpuSegmentationTrainer, max_epochs=settings.max_epochs), **options)
+            _train(model, tuner, max_epochs=settings.max_epochs, data=str(data_yaml), project=str(out.parent),
+                   name=out.name, exist_ok=True, amp=False, plots=False, deterministic=True, **options)
     plot_training_curves(out / "results.csv", out / "training_curves.png")
     return out
 
 
-def _train(model: YOLO, tuner: ThreadTuner | None, **options) -> None:
-    """``model.train(**options)``, with the thread tuner watching every batch when there is one, progress bars
-    written as whole lines into a log, and a teacher distilled at the strides it shares with the network."""
+def _train(model: YOLO, tuner: ThreadTuner | None, max_epochs: int | None = None, **options) -> None:
+    """``model.train(**options)`` with ``CpuSegmentationTrainer`` (at most ``max_epochs``), the thread tuner watching
+    every batch when there is one, progress bars written as whole lines into a log, and a teacher distilled at the
+    strides it shares with the network."""
     if tuner is not None:
         model.add_callback("on_train_batch_end", tuner)
     with bars_as_log_lines(), shared_stride_distillation():
-        model.train(**options)
+        model.train(trainer=partial(CpuSegmentationTrainer, max_epochs=max_epochs), **options)
 
 
 @contextmanager
