@@ -117,35 +117,25 @@ pole-model: $(STAMP)
 		--calibration $(FINAL)/calibration.json \
 		--conf $$($(BIN)/python -c "import json; print(json.load(open('$(FINAL)/tune/metrics.json'))['best_f1_conf'])")
 
-# The robot model's recipe (docs/robot-model.md): robot-p4-seg from scratch at 320 px on a GPU (ROBOT_DEVICE=0; on
-# this two-core CPU the same epochs take about 30 times longer), continued on the CPU, then continued on the GPU
-# while distilling the accurate model's features.
-ROBOT_DEVICE ?= cpu
-ROBOT = runs/robot-model
+# The robot front end's recipe (docs/robot-model.md): pink candidates at full resolution and a crop network per
+# candidate (`poles train-robot`), trained on this two-core CPU from rendered frames over real backdrops; its threshold
+# the best F1 on a tuning set with each frame's camera pose, its range laws fitted on its own boxes.
+ROBOT = runs/robot-front-end
+ROBOT_SYNTH = $(POLE_SYNTH) --far-share 0.3
 robot-model: $(STAMP)
-	$(BIN)/poles synth --out runs/robot-data-1 --images 6000 --seed 2050 $(POLE_SYNTH) --far-share 0.3
-	$(BIN)/poles train --data runs/robot-data-1 --out $(ROBOT)-1 --model robot-p4-seg --weights scratch --imgsz 320 \
-		--batch 64 --workers 7 --device $(ROBOT_DEVICE) --patience 200 --epochs 300 --time 0.16 --seed 2050
-	$(BIN)/poles synth --out runs/robot-data-2 --images 3000 --seed 2051 $(POLE_SYNTH) --far-share 0.3
-	$(BIN)/poles train --data runs/robot-data-2 --out $(ROBOT)-2 --model robot-p4-seg --weights $(ROBOT)-1 --imgsz 320 \
-		--batch 32 --workers 1 --threads 1 --patience 100 --epochs 100 --time 1.3 --seed 2051
-	$(BIN)/poles synth --out runs/robot-data-3 --images 6000 --seed 2052 $(POLE_SYNTH) --far-share 0.3
-	$(BIN)/poles train --data runs/robot-data-3 --out $(ROBOT)-3 --model robot-p4-seg --weights $(ROBOT)-2 --imgsz 320 \
-		--teacher detector/weights/poles-yolov8n-seg.pt --batch 64 --workers 7 --device $(ROBOT_DEVICE) --patience 200 \
-		--epochs 300 --time 0.135 --seed 2052
-	# Threshold: best F1 on 300 fresh tuning frames; calibration from the model's own masks at its 320 px input.
-	$(BIN)/poles synth --out runs/pole-tune-300 --images 300 --seed 139 $(POLE_SYNTH)
-	$(BIN)/poles split --data runs/pole-tune-300 --out runs/pole-tune-300-all --ratios 0 0 1
-	$(BIN)/poles export --weights $(ROBOT)-3 --out $(ROBOT)-3/poles-robot-seg.onnx --imgsz 256 320 --dynamic \
-		--data runs/pole-tune-300-all --force
+	$(BIN)/poles synth --out runs/crops-data-1 --images 4000 --seed 2060 $(ROBOT_SYNTH)
+	$(BIN)/poles synth --out runs/crops-data-2 --images 6000 --seed 2061 $(ROBOT_SYNTH)
+	$(BIN)/poles train-robot runs/crops-data-1 runs/crops-data-2 --out $(ROBOT) --epochs 40 --force
+	$(BIN)/poles synth --out runs/pole-tune-300 --images 300 --seed 139 $(POLE_SYNTH) --force
+	$(BIN)/poles split --data runs/pole-tune-300 --out runs/pole-tune-300-all --ratios 0 0 1 --force
+	$(BIN)/poles evaluate --model $(ROBOT)/poles-robot.onnx --data runs/pole-tune-300-all --split valid --pose \
+		--out $(ROBOT)/tune --force
 	$(BIN)/poles synth --out runs/pole-calib --images 195 --seed 5 --calibration-shots --force
 	for walk in square-10 circle-11 figure8-12; do $(BIN)/poles synth --out runs/walknoise/$$walk \
 		--walk $${walk%-*} --seed $${walk#*-} --force || exit 1; done
-	$(BIN)/poles calibrate --data runs/pole-calib --out $(ROBOT)-3/calibration.json --model $(ROBOT)-3/poles-robot-seg.onnx \
+	$(BIN)/poles calibrate --data runs/pole-calib --out $(ROBOT)/calibration.json --model $(ROBOT)/poles-robot.onnx \
 		--force --noise-data runs/walknoise/square-10 --noise-data runs/walknoise/circle-11 \
 		--noise-data runs/walknoise/figure8-12
-	$(BIN)/poles evaluate --model $(ROBOT)-3/poles-robot-seg.onnx --data runs/pole-tune-300-all --split valid --conf 0.3 \
-		--out $(ROBOT)-3/tune --force
-	$(BIN)/python -m export.ship --robot --weights $(ROBOT)-3/weights/best.pt --onnx $(ROBOT)-3/poles-robot-seg.onnx \
-		--calibration $(ROBOT)-3/calibration.json \
-		--conf $$($(BIN)/python -c "import json; print(json.load(open('$(ROBOT)-3/tune/metrics.json'))['best_f1_conf'])")
+	$(BIN)/python -m export.ship --robot --weights $(ROBOT)/poles-robot.pt --onnx $(ROBOT)/poles-robot.onnx \
+		--calibration $(ROBOT)/calibration.json \
+		--conf $$($(BIN)/python -c "import json; print(json.load(open('$(ROBOT)/tune/metrics.json'))['best_f1_conf'])")

@@ -1,22 +1,28 @@
-"""The robot budget: each pole model's whole front end per 640x480 frame on one thread, at the Nao's instruction set.
+"""The robot budget: each front end's whole run per 640x480 frame, one thread, everything it runs capped at the Nao
+v6's instruction set, and uncapped beside it.
 
-The Nao v6's Atom E3845 has SSE4.2 and no AVX. OpenVINO's CPU plugin (oneDNN) honours ``ONEDNN_MAX_CPU_ISA=SSE41``,
-so a second process runs every model with that cap; an operator without an SSE4.1 primitive refuses to compile there,
-and the table says so. onnxruntime has no such cap: its rows run at this machine's full instruction set. OpenCV and
-numpy (letterbox, decoding, masks, rotated boxes) are not capped either. The front end is ``LandmarkDetector``'s
-call (letterbox, forward pass, NMS, masks, rotated boxes, ground gate) plus range and bearing from the model's
-calibration, the frame's ground view built once for both, as ``naoslam.FrontEnd`` does; "bare" is the forward pass alone on a prepared tensor. Frames: a rendered walk, so the horizon band is the one the
-robot would crop. Ratios are to the shipped accurate model's INT8 copy under OpenVINO in the same process.
-The script fails when the capped run is not slower than the uncapped one (the cap was not in force).
+The Atom E3845 has SSE4.2 and no AVX. Three libraries dispatch on the instruction set, and each is capped in a fresh
+process before it loads: OpenVINO's CPU plugin (oneDNN) by ``ONEDNN_MAX_CPU_ISA=SSE41``, numpy by
+``NPY_DISABLE_CPU_FEATURES`` (its AVX2 and AVX-512 dispatch targets), OpenCV by ``OPENCV_CPU_DISABLE`` (its AVX,
+AVX2, FMA3 and AVX-512 paths). The capped worker checks each cap from inside (numpy's dispatch table,
+``cv2.checkHardwareSupport``, the oneDNN variable) and the script fails when one is not in force, or when a capped
+OpenVINO run is not slower than the uncapped one. onnxruntime has no such cap: its rows run at the full instruction
+set and say so.
 
-A second table is a real rate: a camera delivering 640x480 frames at 30 fps for ``CAMERA_SECONDS`` (frames rendered
-along a walk, replayed on the clock), one thread taking the newest frame whenever it is free, running the front end
-and the EKF SLAM update (and the odometry prediction) on it; frames that arrive while it works are dropped, as on the
-robot. It reports frames processed per second and dropped.
-Usage: python benchmarks/bench_robot.py [FRAMES] [REPEATS]
+Each front end is timed as a user calls it, ``naoslam.FrontEnd(model, threads=1, engine=...)(frame, camera_pose)``,
+on the frames of a rendered walk with the camera's pose (the horizon band and the ground-plane gate), and without
+the pose. The two-stage front end's candidates per frame are counted. The Atom estimate multiplies the capped time
+by 7 to 10: per clock Silvermont issues one 4-wide multiply every two cycles and one add per cycle, a current
+desktop core two of each per cycle (LLVM's scheduling models for SLM and Znver4), about 4x; with the clocks 7-10x
+per core.
+
+A second table is a real rate: a 30 fps camera for ``CAMERA_SECONDS``, one thread taking the newest frame whenever
+it is free, front end and EKF SLAM update on it; frames that arrive while it works are dropped, as on the robot.
+Usage: python benchmarks/bench_robot.py [FRAMES] [REPEATS] [--before OLD_ROBOT_MODEL.onnx]
 """
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import subprocess
@@ -27,14 +33,31 @@ import numpy as np
 
 os.environ.setdefault("YOLO_OFFLINE", "true")
 
-#: The instruction-set cap oneDNN honours: SSE4.1, the Atom's level (it also has SSE4.2, which oneDNN does not use).
-CAP = {"ONEDNN_MAX_CPU_ISA": "SSE41"}
-#: (label, shipped name) of each model, the reference first.
-MODELS = (("accurate INT8", "shipped-int8"), ("accurate FP32", "shipped"), ("robot", "shipped-robot"))
+#: The Atom's instruction set, for each library that dispatches on it.
+CAPS = {"ONEDNN_MAX_CPU_ISA": "SSE41", "NPY_DISABLE_CPU_FEATURES": "X86_V3 X86_V4 AVX512_ICL AVX512_SPR",
+        "OPENCV_CPU_DISABLE": "AVX,AVX2,FP16,FMA3,AVX512F,AVX512-SKX"}
+#: OpenCV's ids of the features the cap must switch off (``cv::CpuFeatures``): AVX, AVX2, FMA3, AVX-512F, AVX512-SKX.
+OPENCV_ABOVE_ATOM = {"AVX": 10, "AVX2": 11, "FMA3": 12, "AVX_512F": 13, "AVX512_SKX": 256}
+#: The Atom estimate's range: capped time on this machine times these (see the module's docstring).
+ATOM_FACTORS = (7.0, 10.0)
+#: (label, model) of each front end, the shipped robot model first.
+MODELS = [("robot, two-stage", "shipped-robot"), ("accurate INT8", "shipped-int8")]
 ENGINES = ("openvino", "onnxruntime")
-#: The Nao's top camera rate, and how long the camera-rate loop runs.
 CAMERA_FPS = 30.0
 CAMERA_SECONDS = 20.0
+
+
+def caps_in_force() -> list[str]:
+    """What of the Atom cap is not in force in this process (empty when all of it is)."""
+    import cv2
+    from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+
+    problems = [f"numpy dispatches {target}" for target in __cpu_dispatch__ if __cpu_features__.get(target)]
+    problems += [f"OpenCV uses {name}" for name, feature in OPENCV_ABOVE_ATOM.items()
+                 if cv2.checkHardwareSupport(feature)]
+    if os.environ.get("ONEDNN_MAX_CPU_ISA") != CAPS["ONEDNN_MAX_CPU_ISA"]:
+        problems.append("oneDNN (OpenVINO) is not capped: ONEDNN_MAX_CPU_ISA is not SSE41")
+    return problems
 
 
 def median_ms(run, items, repeats: int) -> float:
@@ -50,37 +73,33 @@ def median_ms(run, items, repeats: int) -> float:
     return 1000 * float(np.median(times))
 
 
-def measure(count: int, repeats: int) -> dict:
-    """Every model, engine and input in this process: {key: ms or a reason it did not run}."""
+def measure(models: list[tuple[str, str]], count: int, repeats: int) -> dict:
+    """Every front end and engine in this process: {key: ms, or a reason it did not run}."""
+    import cv2
     from bench_engines import walk_frames
 
+    import naoslam
     from naoslam.colour_filter import ColourFilter
-    from naoslam.detector import LandmarkDetector
-    from naoslam.measurement import MeasurementModel
 
+    cv2.setNumThreads(1)
     frames, poses = walk_frames(count)
     results: dict[str, float | str] = {}
-    for label, name in MODELS:
+    for label, model in models:
         for engine in ENGINES:
+            key = f"{label}|{engine}"
             try:
-                detector = LandmarkDetector(name, threads=1, engine=engine)
-                detector(frames[0])
+                front_end = naoslam.FrontEnd(model, threads=1, engine=engine)
+                front_end(frames[0], poses[0])
             except Exception as error:  # an operator with no primitive at this instruction set, a missing model
-                results[f"{label}|{engine}|whole"] = f"does not run: {str(error).splitlines()[0][:80]}"
+                results[f"{key}|pose"] = f"does not run: {str(error).splitlines()[0][:80]}"
                 continue
-            calibration = detector.usable_calibration
-            measurement = MeasurementModel(calibration, min_confidence=0.0) if calibration else None
-            blobs = [detector.prepare(f)[0] for f in frames]
-            results[f"{label}|{engine}|bare"] = median_ms(detector.forward, blobs, repeats)
-            for crop in (False, True):
-                def front_end(i: int) -> None:  # as naoslam.FrontEnd: one ground view per frame, gate and ranges
-                    view = detector.ground_view(frames[i].shape[:2], poses[i])
-                    found = detector(frames[i], poses[i], crop=crop, view=view)
-                    if measurement is not None:
-                        measurement.measure(found, frames[i].shape[1], view=view)
-                results[f"{label}|{engine}|{'band' if crop else 'whole'}"] = median_ms(front_end, range(count), repeats)
-    colour_filter = ColourFilter()
-    results["colour filter|opencv|whole"] = median_ms(colour_filter, frames, repeats)
+            results[f"{key}|pose"] = median_ms(lambda i: front_end(frames[i], poses[i]), range(count), repeats)
+            results[f"{key}|no pose"] = median_ms(lambda i: front_end(frames[i]), range(count), repeats)
+            finder = getattr(front_end.detector, "finder", None)
+            if finder is not None:
+                views = [front_end.detector.ground_view(f.shape[:2], p) for f, p in zip(frames, poses)]
+                results[f"{key}|candidates"] = float(np.mean([len(finder(f, v)) for f, v in zip(frames, views)]))
+    results["colour filter|opencv|no pose"] = median_ms(ColourFilter(), frames, repeats)
     return results
 
 
@@ -94,7 +113,7 @@ def camera_rate(model: str, engine: str) -> dict:
     walk = simulate(SimConfig(seed=3, duration_s=CAMERA_SECONDS))
     frames, poses = render_walk(walk, seed=3, progress=False), walk_camera_poses(walk, 3)
     odometry = [walk.steps[i].odometry_pose for i in frame_steps(walk)]
-    front_end = naoslam.FrontEnd(naoslam.LandmarkDetector(model, threads=1, engine=engine))
+    front_end = naoslam.FrontEnd(model, threads=1, engine=engine)
     front_end(frames[0], poses[0])  # compile and warm up before the camera starts
     slam = naoslam.EkfSlam(odometry[0], np.diag([0.01, 0.01, 0.01]) ** 2, OdometryModel(), naoslam.SlamConfig())
     processed, previous, start = 0, None, time.perf_counter()
@@ -111,62 +130,89 @@ def camera_rate(model: str, engine: str) -> dict:
     return {"processed_fps": processed / CAMERA_SECONDS, "dropped": total - processed, "frames": total}
 
 
-def run_worker(capped: bool, count: int, repeats: int, task: list[str] | None = None) -> dict:
-    """``measure`` (or ``task``) in a fresh process (the cap must be set before OpenVINO loads), one thread
-    everywhere."""
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", **(CAP if capped else {})}
-    if not capped:
-        env.pop("ONEDNN_MAX_CPU_ISA", None)
-    out = subprocess.run([sys.executable, __file__, "--worker", str(count), str(repeats), *(task or [])], env=env,
-                         capture_output=True, text=True, check=True)
+def worker_environment(capped: bool) -> dict[str, str]:
+    """One thread everywhere; the Atom cap on every library, or none of it."""
+    env = {key: value for key, value in os.environ.items() if key not in CAPS}
+    env.update({"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", **(CAPS if capped else {})})
+    return env
+
+
+def run_worker(capped: bool, task: dict) -> dict:
+    """``task`` in a fresh process (the caps must be set before the libraries load); a capped worker refuses to run
+    when a cap is not in force."""
+    out = subprocess.run([sys.executable, __file__, "--worker", json.dumps({**task, "capped": capped})],
+                         env=worker_environment(capped), capture_output=True, text=True)
+    if out.returncode:
+        raise SystemExit(f"worker failed:\n{out.stderr[-2000:]}")
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def cell(value, reference) -> str:
+def worker(task: dict) -> dict:
+    if task["capped"] and (problems := caps_in_force()):
+        raise SystemExit("the Atom cap is not in force: " + "; ".join(problems))
+    if "camera" in task:
+        return camera_rate(*task["camera"])
+    return measure([tuple(m) for m in task["models"]], task["frames"], task["repeats"])
+
+
+def cell(value, atom: bool = False) -> str:
     if isinstance(value, str):
         return value
-    ratio = f" ({value / reference:.2f}x)" if isinstance(reference, float) else ""
-    return f"{value:.1f}{ratio}"
+    if value is None:
+        return "-"
+    if atom:
+        low, high = (value * factor for factor in ATOM_FACTORS)
+        return f"{low:.0f}-{high:.0f}"
+    return f"{value:.2f}"
 
 
-def main(count: int, repeats: int) -> None:
-    capped, uncapped = run_worker(True, count, repeats), run_worker(False, count, repeats)
-    reference = "accurate INT8|openvino|whole"
-    print(f"{count} walk frames (640x480), {repeats} passes, one thread; ms per frame (ratio to the accurate INT8 "
-          "model, OpenVINO, whole frame, same column)")
-    print("| model | engine | input | capped at SSE4.1 | this machine's full ISA |")
-    print("| --- | --- | --- | --- | --- |")
-    for key in uncapped:
-        label, engine, part = key.split("|")
-        capped_cell = cell(capped.get(key, "-"), capped.get(reference)) if engine != "onnxruntime" else "no cap"
-        print(f"| {label} | {engine} | {part} | {capped_cell} | {cell(uncapped[key], uncapped.get(reference))} |")
-    for label, _ in MODELS:
-        for engine, results in (("openvino", capped), ("onnxruntime", uncapped)):
-            bare, whole = results.get(f"{label}|{engine}|bare"), results.get(f"{label}|{engine}|whole")
-            if isinstance(bare, float) and isinstance(whole, float):
-                print(f"front end / bare forward pass, {label}, {engine}"
-                      f"{' capped' if engine == 'openvino' else ''}: {whole / bare:.2f}x")
+def speed_table(models: list[tuple[str, str]], count: int, repeats: int) -> tuple[dict, dict]:
+    """The capped and the uncapped measurements (each in its own process)."""
+    task = {"models": models, "frames": count, "repeats": repeats}
+    return run_worker(True, task), run_worker(False, task)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("frames", type=int, nargs="?", default=20)
+    parser.add_argument("repeats", type=int, nargs="?", default=3)
+    parser.add_argument("--before", help="the robot model this one replaces (an ONNX file), timed beside it")
+    args = parser.parse_args()
+    models = MODELS + ([("robot-p4-seg (before)", args.before)] if args.before else [])
+    capped, uncapped = speed_table(models, args.frames, args.repeats)
+    print(f"{args.frames} walk frames (640x480), {args.repeats} passes, one thread; ms per frame. Capped: OpenVINO "
+          "(oneDNN SSE4.1), numpy (no AVX2/AVX-512 dispatch) and OpenCV (no AVX/AVX2/FMA3/AVX-512), checked in the "
+          "worker; onnxruntime cannot be capped.")
+    print("| front end | engine | with pose, capped | without pose, capped | with pose, full ISA | "
+          "Atom E3845 estimate, with pose (x7-10) | candidates / frame |")
+    print("| --- | --- | --- | --- | --- | --- | --- |")
+    for label, _ in models + [("colour filter", "")]:
+        for engine in ("opencv",) if label == "colour filter" else ENGINES:
+            key = f"{label}|{engine}"
+            capped_pose = capped.get(f"{key}|pose") if engine != "onnxruntime" else "no cap"
+            capped_plain = capped.get(f"{key}|no pose") if engine != "onnxruntime" else "no cap"
+            atom = cell(capped_pose, atom=True) if engine == "openvino" else "-"
+            print(f"| {label} | {engine} | {cell(capped_pose)} | {cell(capped_plain)} | "
+                  f"{cell(uncapped.get(f'{key}|pose'))} | {atom} | {cell(uncapped.get(f'{key}|candidates'))} |")
     print(f"\nA {CAMERA_FPS:.0f} fps camera for {CAMERA_SECONDS:.0f} s, one thread, front end and EKF SLAM on the "
           "newest frame")
-    print("| model | engine | frames processed per second | dropped |")
+    print("| front end | engine | frames processed per second | dropped |")
     print("| --- | --- | --- | --- |")
-    for label, name in MODELS[2:] + MODELS[:1]:
+    for label, model in models:
         for engine, capped_run in (("openvino", True), ("onnxruntime", False)):
-            rate = run_worker(capped_run, 0, 0, ["--camera", name, engine])
-            print(f"| {label} | {engine}{' capped at SSE4.1' if capped_run else ''} | {rate['processed_fps']:.1f} | "
+            rate = run_worker(capped_run, {"camera": [model, engine]})
+            print(f"| {label} | {engine}{' capped' if capped_run else ''} | {rate['processed_fps']:.1f} | "
                   f"{rate['dropped']} of {rate['frames']} |", flush=True)
-    slower = [key for key, value in capped.items() if "openvino" in key and isinstance(value, float)
+    slower = [key for key, value in capped.items() if "openvino|pose" in key and isinstance(value, float)
               and isinstance(uncapped.get(key), float) and value <= uncapped[key]]
-    if slower or not isinstance(capped.get(reference), float):
-        raise SystemExit(f"the SSE4.1 cap was not in force: capped runs not slower for {slower or [reference]}")
+    if slower:
+        raise SystemExit(f"the SSE4.1 cap was not in force: capped runs not slower for {slower}")
 
 
 if __name__ == "__main__":
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    if sys.argv[1:2] == ["--worker"] and sys.argv[4:5] == ["--camera"]:
-        print(json.dumps(camera_rate(sys.argv[5], sys.argv[6])))
-    elif sys.argv[1:2] == ["--worker"]:
-        print(json.dumps(measure(int(sys.argv[2]), int(sys.argv[3]))))
+    if sys.argv[1:2] == ["--worker"]:
+        print(json.dumps(worker(json.loads(sys.argv[2]))))
     else:
-        main(int(sys.argv[1]) if len(sys.argv) > 1 else 20, int(sys.argv[2]) if len(sys.argv) > 2 else 3)
+        main()

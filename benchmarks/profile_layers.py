@@ -57,7 +57,7 @@ def profile(model: str, input_hw: tuple[int, int], top: int, repeats: int = 30) 
 
 def main(argv: list[str]) -> None:
     parser = argparse.ArgumentParser(prog="profile_layers.py", description=__doc__.splitlines()[0])
-    parser.add_argument("model", help="an ONNX file, e.g. naoslam/models/poles-robot-seg.onnx")
+    parser.add_argument("model", help="an ONNX file, e.g. naoslam/models/poles-robot.onnx")
     parser.add_argument("--hw", type=int, nargs=2, default=(256, 320), metavar=("HEIGHT", "WIDTH"),
                         help="network input (default 256 320, the robot model's; 480 640 for the accurate one)")
     parser.add_argument("--top", type=int, default=25, help="slowest layers listed (default 25)")

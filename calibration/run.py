@@ -9,9 +9,9 @@ import numpy as np
 
 from calibration.fit import MIN_NOISE_SIGHTINGS, WALK_RELATIVE_STD, calibrate
 from calibration.samples import MEASURE_CONF, SizeSample, as_arrays, measure_samples, measures_law, open_ranged
-from detector.datasets.io import check_output_file
+from detector.outputs import check_output_file
 from detector.atomic import write_json
-from naoslam.detector import LandmarkDetector
+from naoslam.detector import load_detector
 from naoslam.measurement import RangeCalibration
 
 #: The 2024 thesis's laws at 640x480, drawn for comparison.
@@ -28,19 +28,21 @@ def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv:
     the calibration in."""
     if plot is not None and Path(plot).suffix.lower() != ".png":
         raise ValueError(f"--plot {plot}: the fit plot is written as PNG - name it *.png; nothing was written")
-    inputs = tuple(Path(path) for path in (data, truth_csv, model, *embed, *noise_data) if path is not None)
-    for output in (out, plot) if plot else (out,):
-        check_output_file(output, force, inputs)
     if input_width is not None and model is None:
         raise ValueError("--imgsz is a model's input width: give --model (label masks have no input width)")
+    ranged = open_ranged(data, truth_csv)
+    walks = [open_ranged(folder) for folder in noise_data]  # every input checked before any is measured
+    read = [ranged.dataset, *(walk.dataset for walk in walks)]
+    inputs = tuple(Path(path) for path in (data, truth_csv, model, *embed, *noise_data) if path is not None) + \
+        tuple(folder for dataset in read for folder in dataset.input_folders())
+    for output in (out, plot) if plot else (out,):
+        check_output_file(output, force, inputs)
     if embed:
         from detector.model_files import read_info
 
         for target in embed:
             read_info(target)  # refuse a model that cannot take the calibration before anything is written
-    ranged = open_ranged(data, truth_csv)
-    walks = [open_ranged(folder) for folder in noise_data]  # every input checked before any is measured
-    detector = LandmarkDetector(model, conf=MEASURE_CONF, input_width=input_width) if model else None
+    detector = load_detector(model, conf=MEASURE_CONF, input_width=input_width) if model else None
     samples = measure_samples(ranged, detector)
     ranges = sorted({round(sample.range_m, 3) for sample in samples})
     if len(ranges) < 2:
@@ -49,8 +51,9 @@ def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv:
                          "or more distances: add shots from other distances; nothing was written")
     walk = [s for w in walks for s in measure_samples(w, detector)] if walks else None
     calibration, report = calibrate(samples, walk_samples=walk)
-    calibration = replace(calibration, input_width=detector.input_hw[1] if detector else None)
-    report["source"] = f"masks of {model} at {calibration.input_width} px input" if model else "label masks"
+    calibration = replace(calibration, input_width=detector.calibration_width if detector else None)
+    report["source"] = ((f"boxes of {model} at the frames' own pixels" if calibration.input_width is None else
+                         f"masks of {model} at {calibration.input_width} px input") if model else "label masks")
     report["noise_source"] = (", ".join(str(folder) for folder in noise_data) if noise_data
                               else "rendered walks with the shipped model at 640 px input (the default; "
                                    "--noise-data measures your own)")

@@ -12,12 +12,12 @@ from detector.datasets.intake import open_dataset
 from detector.datasets.polygons import polygon_to_mask
 from detector.datasets.model import Dataset
 from detector.datasets.truth import ImageTruth, load_truth
-from detector.matching import mask_iou
+from detector.matching import box_iou, mask_box, mask_iou
 from naoslam.camera import NAO_HFOV_DEG, CameraPose, PinholeCamera
 from naoslam.colour_filter import ColourFilter
 from naoslam.detections import Detection, mask_centre_column, rotated_box_of_mask
-from naoslam.detector import LandmarkDetector
-from naoslam.ground import GroundView
+from naoslam.pole_model import PoleModel
+from naoslam.ground import GroundView, PoleExtent
 from naoslam.landmarks import PoleGeometry
 from naoslam.measurement import band_spacing_per_cm, on_axis_size
 
@@ -70,7 +70,7 @@ def open_ranged(data: Path, truth_csv: Path | None = None, progress: bool = True
 MEASURE_CONF = 0.25
 
 
-def measure_samples(ranged: RangedDataset, detector: LandmarkDetector | None = None, progress: bool = True,
+def measure_samples(ranged: RangedDataset, detector: PoleModel | None = None, progress: bool = True,
                     hfov_deg: float = NAO_HFOV_DEG) -> list[SizeSample]:
     """Measure every pole with a true range: its labelled mask, or the ``detector``'s best same-class detection (and
     its foot-row range where the image's camera pose is known); and what the colour filter measures of it, so that
@@ -91,13 +91,13 @@ def measure_samples(ranged: RangedDataset, detector: LandmarkDetector | None = N
                 continue
             label_mask = polygon_to_mask(instance.pixels(width, height), width, height)
             if detections is None:
-                mask, origin = label_mask, (0, 0)
-                box, column = rotated_box_of_mask(mask), mask_centre_column(mask) if mask.any() else None
+                box, column = rotated_box_of_mask(label_mask), mask_centre_column(label_mask) if label_mask.any() else None
+                extent = PoleExtent.of_mask(label_mask)
             else:
                 found = _matching_detection(detections, instance.cls, label_mask)
                 if found is None:
                     continue
-                box, column, mask, origin = found.rotated_box, found.centre_column, found.mask, found.mask_origin
+                box, column, extent = found.rotated_box, found.centre_column, found.extent
             if box is None:
                 continue
             view = _ground_view(entry.get("camera"), width, height, hfov_deg)
@@ -106,7 +106,7 @@ def measure_samples(ranged: RangedDataset, detector: LandmarkDetector | None = N
             if view is not None:  # the laws are fitted on what a level camera sees, as measurements are taken
                 box_width, box_height = view.level_size(box_width, box_height, range_m,
                                                         float(view.camera.bearing_of_column(column)))
-            foot = view.foot(mask, origin) if view is not None else None
+            foot = view.foot_of(extent) if view is not None and extent is not None else None
             partial = entry.get("partial")
             if partial is None:  # a truth CSV does not say: a pole whose outline reaches the border is cut
                 partial = touches_border(instance.polygon)
@@ -125,11 +125,15 @@ MATCH_IOU = 0.5
 
 
 def _matching_detection(detections, cls: str, label_mask: np.ndarray):
-    """The detection of class ``cls`` whose mask overlaps the labelled pole's most (IoU >= ``MATCH_IOU``), or None."""
+    """The detection of class ``cls`` whose mask (a box-only detection: whose box) overlaps the labelled pole's
+    most (IoU >= ``MATCH_IOU``), or None."""
     same = [d for d in detections if d.name == cls]
     if not same:
         return None
-    overlap = mask_iou([d.full_mask(label_mask.shape) for d in same], [label_mask])[:, 0]
+    if same[0].box_only:
+        overlap = box_iou([d.box for d in same], [mask_box(label_mask)])[:, 0]
+    else:
+        overlap = mask_iou([d.full_mask(label_mask.shape) for d in same], [label_mask])[:, 0]
     best = int(np.argmax(overlap))
     return same[best] if overlap[best] >= MATCH_IOU else None
 

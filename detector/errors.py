@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import errno
 import signal
+import re
 import sys
 import tempfile
 import time
@@ -18,7 +19,7 @@ from collections.abc import Callable
 from contextlib import contextmanager
 from pathlib import Path
 
-from detector.datasets.model import DatasetError
+from detector.datasets.model import BAD_INPUT_ERRORS
 from detector.stages import StageFailed
 
 #: Exit statuses.
@@ -45,6 +46,18 @@ def _sigterm_raises():
         signal.signal(signal.SIGTERM, previous)
 
 
+#: What an interrupted command says it did with its output, unless it said otherwise (``keep_on_interrupt``).
+DEFAULT_INTERRUPT_NOTE = "unfinished output was removed"
+_interrupt_note: str | None = None
+
+
+def keep_on_interrupt(note: str | None) -> None:
+    """Say ``note`` (what the command keeps, and how to resume it) if it is interrupted from now on (None: the
+    default)."""
+    global _interrupt_note
+    _interrupt_note = note
+
+
 #: What to do about the operating system's refusals, by errno.
 _OS_FIXES = {
     errno.ENOSPC: "the disk is full - free some space or write --out to another disk; nothing was left behind",
@@ -65,12 +78,24 @@ def os_error_message(error: OSError) -> str:
     return f"{_user_path(Path(error.filename))}: {_OS_FIXES[error.errno]}"
 
 
+#: The end of the temporary file's name an atomic write makes beside its output, ``.<name>.<pid>.tmp``
+#: (``detector.atomic.atomic_path``).
+_TEMPORARY_SUFFIX = re.compile(r"^(.+)\.\d+\.tmp$")
+
+
 def _user_path(path: Path) -> Path:
-    """The output an atomic writer's temporary ``.<name>.partial-XXXX`` folder stands for, else ``path``."""
+    """The output an atomic writer's temporary ``.<name>.partial-XXXX`` folder or ``.<name>.<pid>.tmp`` file (one in
+    another, too) stands for, else ``path``."""
     for part in (path, *path.parents):
         if part.name.startswith(".") and ".partial-" in part.name:
             return part.parent / part.name[1:].split(".partial-")[0]
-    return path
+    name = path.name
+    if not (name.startswith(".") and _TEMPORARY_SUFFIX.match(name)):
+        return path
+    name = name.lstrip(".")
+    while match := _TEMPORARY_SUFFIX.match(name):
+        name = match.group(1)
+    return path.with_name(name)
 
 
 def run_command(name: str, command: Callable[[], int], debug: bool = False) -> int:
@@ -80,12 +105,12 @@ def run_command(name: str, command: Callable[[], int], debug: bool = False) -> i
         with _sigterm_raises():
             return command()
     except KeyboardInterrupt:
-        print(f"{prefix} interrupted; unfinished output was removed", file=sys.stderr)
+        print(f"{prefix} interrupted; {_interrupt_note or DEFAULT_INTERRUPT_NOTE}", file=sys.stderr)
         return INTERRUPTED
     except Terminated:
-        print(f"{prefix} terminated; unfinished output was removed", file=sys.stderr)
+        print(f"{prefix} terminated; {_interrupt_note or DEFAULT_INTERRUPT_NOTE}", file=sys.stderr)
         return TERMINATED
-    except (DatasetError, ValueError, OSError) as exc:
+    except BAD_INPUT_ERRORS as exc:
         if debug:
             raise
         print(f"{prefix} {os_error_message(exc) if isinstance(exc, OSError) else exc}", file=sys.stderr)
@@ -94,7 +119,7 @@ def run_command(name: str, command: Callable[[], int], debug: bool = False) -> i
         if debug:
             raise
         print(f"{prefix} {exc}", file=sys.stderr)
-        return BAD_INPUT if isinstance(exc.__cause__, (DatasetError, ValueError, OSError)) else UNEXPECTED
+        return BAD_INPUT if isinstance(exc.__cause__, BAD_INPUT_ERRORS) else UNEXPECTED
     except Exception as exc:
         if debug:
             raise

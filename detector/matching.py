@@ -1,4 +1,4 @@
-"""Box and mask IoU, and greedy one-to-one matching of detections to references (best score first)."""
+"""Box and mask IoU, the box around a mask, and greedy one-to-one matching of detections to references (best score first)."""
 from __future__ import annotations
 
 import numpy as np
@@ -26,6 +26,14 @@ def mask_iou(a: list[np.ndarray] | np.ndarray, b: list[np.ndarray] | np.ndarray)
     inter = fa @ fb.T
     union = fa.sum(1)[:, None] + fb.sum(1)[None, :] - inter
     return np.divide(inter, union, out=np.zeros_like(inter), where=union > 0).astype(float)
+
+
+def mask_box(mask: np.ndarray) -> tuple[float, float, float, float]:
+    """The box (x0, y0, x1, y1, pixel edges) around a mask; all zero for an empty one."""
+    rows, columns = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    if not len(rows):
+        return (0.0, 0.0, 0.0, 0.0)
+    return (float(columns[0]), float(rows[0]), float(columns[-1] + 1), float(rows[-1] + 1))
 
 
 def greedy_match(iou: np.ndarray, scores: np.ndarray, threshold: float,

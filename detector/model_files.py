@@ -18,8 +18,9 @@ from naoslam.model_info import METADATA_KEY, ModelInfo
 
 #: The pole-pretrained checkpoint shipped with the package (the source of naoslam's shipped accurate models).
 SHIPPED_WEIGHTS = Path(__file__).resolve().parent / "weights" / "poles-yolov8n-seg.pt"
-#: The robot model's checkpoint (the source of naoslam's ``shipped-robot``); train it on with ``--weights``.
-ROBOT_WEIGHTS = SHIPPED_WEIGHTS.with_name("poles-robot-seg.pt")
+#: The robot front end's crop network checkpoint (the source of naoslam's ``shipped-robot``); train it on with
+#: ``poles train-robot --weights``.
+ROBOT_WEIGHTS = SHIPPED_WEIGHTS.with_name("poles-robot.pt")
 
 
 def run_checkpoint(path: str | Path) -> Path:

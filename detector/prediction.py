@@ -16,13 +16,13 @@ import cv2
 import numpy as np
 
 from detector.console import show_progress
-from detector.datasets.io import (IMAGE_SUFFIXES, DatasetWriter, check_output_file, output_folder,
-                                  require_decodable)
+from detector.datasets.io import DATASET, IMAGE_SUFFIXES, DatasetWriter, require_decodable
 from detector.datasets.model import Instance
 from detector.datasets.polygons import mask_to_polygon
+from detector.outputs import check_output_file, output_folder
 from detector.preview import CLASS_BGR, contact_sheet, draw_label
 from naoslam.detections import Detection
-from naoslam.detector import LandmarkDetector
+from naoslam.detector import load_detector
 from naoslam.landmarks import CLASSES
 from naoslam.front_end import FrontEnd
 from naoslam.measurement import Measurement
@@ -103,7 +103,7 @@ def prelabel(images: Path, out: Path, model: Path | None = None, conf: float | N
     memory of one frame, and a bad frame or an existing ``out`` is refused before the model runs."""
     if fmt not in ("yolov8", "coco"):
         raise ValueError(f"--format {fmt!r}: choose yolov8 or coco")
-    detector = LandmarkDetector(model, conf=conf)
+    detector = load_detector(model, conf=conf)
     count, _, frames = frames_in(images, subfolders=True)
     counts = {"frames": 0, "poles": 0, "empty": 0}
 
@@ -136,7 +136,7 @@ def _write_coco(out: Path, labelled: Iterable[tuple[str, np.ndarray, Path | None
     folder) and ``_annotations.coco.json`` (pixel polygons)."""
     categories = [{"id": i, "name": code, "supercategory": "poles"} for i, code in enumerate(CLASSES)]
     images, annotations = [], []
-    with output_folder(out, force, (protect,)) as tmp:
+    with output_folder(out, force, (protect,), DATASET) as tmp:
         (tmp / "train").mkdir()
         for index, (name, frame, path, instances) in enumerate(labelled):
             target = tmp / "train" / name
@@ -166,7 +166,7 @@ def overlay_video(source: Path, out: Path, model: Path | None = None, conf: floa
         raise ValueError(f"--out {out}: the overlay video is written as MP4 - name it *.mp4")
     for output in (out, out.with_suffix(".png")):  # the video and its contact sheet
         check_output_file(output, force, (Path(source),))
-    detector = LandmarkDetector(model, conf=conf, input_width=input_width)
+    detector = load_detector(model, conf=conf, input_width=input_width)
     front_end = FrontEnd(detector, min_confidence=detector.conf) if detector.usable_calibration else None
     count, fps, frames = frames_in(source)
     every = max(1, count // SHEET_TILES)

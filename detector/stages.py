@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from detector.atomic import write_json
+from detector.datasets.model import BAD_INPUT_ERRORS
 
 
 class StageFailed(RuntimeError):
@@ -92,7 +93,8 @@ class StageLedger:
             self.records[name] = StageRecord(name, key, "failed", time.perf_counter() - start,
                                              error=f"{type(exc).__name__}: {exc}")
             self._save()
-            raise StageFailed(f"stage {name!r} failed: {type(exc).__name__}: {exc}\n"
+            cause = str(exc) if isinstance(exc, BAD_INPUT_ERRORS) else f"{type(exc).__name__}: {exc}"
+            raise StageFailed(f"stage {name!r} failed: {cause}\n"
                               f"Earlier stages are kept in {self.folder}; fix the cause and run again to resume.") from exc
         self.records[name] = StageRecord(name, key, "done", time.perf_counter() - start, summary)
         self._save()

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 
-from detector.datasets.io import check_output_file
+from detector.outputs import check_output_file
 from detector.model_files import write_metadata
 from naoslam.model_info import ModelInfo
 

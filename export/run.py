@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 
 from detector.datasets.intake import open_dataset
-from detector.datasets.io import check_output_file
+from detector.outputs import check_output_file
 from detector.model_files import ultralytics_predict
 from export.onnx_export import NAO_INPUT_HW, export_onnx, int8_path
 from export.quantize import quantize_int8

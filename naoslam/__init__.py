@@ -14,6 +14,8 @@ import importlib
 _PUBLIC = {
     "FrontEnd": "naoslam.front_end",
     "LandmarkDetector": "naoslam.detector",
+    "CropDetector": "naoslam.crop_detector",
+    "load_detector": "naoslam.detector",
     "Detection": "naoslam.detections",
     "shipped_model": "naoslam.shipped",
     "shipped_calibration": "naoslam.detector",

@@ -1,9 +1,10 @@
-"""One pole detection, whoever found it: the ONNX front end, the colour filter, or Ultralytics on the training side.
+"""One pole detection, whoever found it: the ONNX front end, the robot's two-stage front end, the colour filter, or
+Ultralytics on the training side.
 
 Every front end returns ``Detection`` objects, and everything downstream (the measurement model, evaluation as the
 thesis counted, the export's agreement check, the overlays) reads them. The adapters that build one from what a
 finder has in hand live here, as class methods: ``from_mask`` (a full-frame mask: the colour filter's bands, an
-Ultralytics mask) and ``from_ultralytics`` (an Ultralytics ``Results``, read by duck typing: naoslam never imports
+Ultralytics mask), ``from_box`` (the robot front end, which finds boxes and no mask) and ``from_ultralytics`` (an Ultralytics ``Results``, read by duck typing: naoslam never imports
 Ultralytics).
 """
 from __future__ import annotations
@@ -14,6 +15,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from naoslam.ground import PoleExtent
 from naoslam.landmarks import CLASSES
 
 
@@ -58,7 +60,8 @@ def mask_centre_column(mask: np.ndarray, origin: tuple[int, int] = (0, 0)) -> fl
 class Detection:
     """One pole: class, confidence, box (x1, y1, x2, y2 in frame pixels), its mask cropped to ``mask_origin``, the
     rotated box around the mask and the mask's mean column. The colour filter also gives ``band_centres`` (the upper
-    and the lower band's centre, x and y): its range comes from their distance, its place from their midpoint."""
+    and the lower band's centre, x and y): its range comes from their distance, its place from their midpoint. A
+    ``box_only`` detection has no mask: its rotated box is the upright box, its column the box's middle."""
 
     class_id: int
     name: str
@@ -69,10 +72,20 @@ class Detection:
     rotated_box: RotatedBox | None
     centre_column: float
     band_centres: tuple[tuple[float, float], tuple[float, float]] | None = None
+    box_only: bool = False
+
+    @property
+    def extent(self) -> PoleExtent | None:
+        """The pole's top and foot points: from its mask, or from its box when it has no mask (None: empty mask)."""
+        return PoleExtent.of_box(self.box) if self.box_only else PoleExtent.of_mask(self.mask, self.mask_origin)
 
     def full_mask(self, frame_shape: tuple[int, ...]) -> np.ndarray:
-        """The mask as a boolean array the size of the frame (height, width)."""
+        """The mask as a boolean array the size of the frame (height, width); a box-only detection's box, filled."""
         out = np.zeros(frame_shape[:2], dtype=bool)
+        if self.box_only:
+            x0, y0, x1, y1 = (int(round(v)) for v in self.box)
+            out[max(y0, 0):max(y1, 0), max(x0, 0):max(x1, 0)] = True
+            return out
         x0, y0 = self.mask_origin
         h, w = self.mask.shape
         out[y0:y0 + h, x0:x0 + w] = self.mask
@@ -123,6 +136,15 @@ class Detection:
         class_id = CLASSES.index(name) if class_id is None else class_id
         return cls(class_id, name, float(confidence), box, crop, origin,
                    rotated_box_of_mask(crop, origin), float(centre_column), band_centres)
+
+    @classmethod
+    def from_box(cls, name: str, confidence: float, box: tuple[float, float, float, float],
+                 class_id: int | None = None) -> "Detection":
+        """A detection of an upright pole's box (x0, y0, x1, y1 in frame pixels) with no mask."""
+        x0, y0, x1, y1 = (float(v) for v in box)
+        upright = RotatedBox((x0 + x1) / 2, (y0 + y1) / 2, x1 - x0, y1 - y0, 0.0)
+        return cls(CLASSES.index(name) if class_id is None else class_id, name, float(confidence), (x0, y0, x1, y1),
+                   np.zeros((0, 0), bool), (int(x0), int(y0)), upright, (x0 + x1) / 2, box_only=True)
 
     @classmethod
     def from_ultralytics(cls, result, frame_shape: tuple[int, ...]) -> list["Detection"]:

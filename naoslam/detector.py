@@ -8,36 +8,26 @@ width is not quantised to 4 px before the rotated box is measured.
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import cv2
 import numpy as np
-import onnxruntime as ort
 
-from naoslam.camera import NAO_HFOV_DEG, CameraPose, PinholeCamera
+from naoslam.camera import CameraPose
 from naoslam.detections import Detection, mask_centre_column, rotated_box_of_mask
-from naoslam.engines import ENGINES, OpenVinoForward
+from naoslam.engines import OpenVinoForward
 from naoslam.frames import bgr_frame
-from naoslam.ground import GroundView
+from naoslam.ground import GroundView, ground_gate
 from naoslam.landmarks import CLASSES
 from naoslam.measurement import RangeCalibration
 from naoslam.model_info import ModelInfo
-from naoslam.shipped import (DEFAULT_CONF, OPERATING_CONF_KEY, model_argument, profile_model, resolve_model,
-                             shipped_model)
+from naoslam.crop_detector import CropDetector, is_crop_model
+from naoslam.pole_model import PoleModel, check_classes, check_options, load_session, valid_confidence
+from naoslam.shipped import DEFAULT_CONF, model_argument, resolve_model, shipped_model
 
 #: Ultralytics' letterbox fill value.
 PAD_VALUE = 114
-
-
-def valid_confidence(conf: float) -> float:
-    """``conf`` as a float when it can be a confidence threshold (between 0 and 1), else a ValueError: a threshold
-    of 5 would drop every detection and one of -1 keep every candidate box, both without a word."""
-    conf = float(conf)
-    if not 0.0 < conf < 1.0:
-        raise ValueError(f"confidence threshold {conf} must lie between 0 and 1")
-    return conf
 
 
 @dataclass(frozen=True)
@@ -85,58 +75,33 @@ class Letterbox:
         return sx, (self.left + 0.5 * sx / fx) * fx - 0.5, sy, (self.top + 0.5 * sy / fy) * fy - 0.5
 
 
-def load_session(path: Path | str, threads: int | None = None) -> ort.InferenceSession:
-    """An onnxruntime CPU session; a missing or unreadable file raises an error that names it."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such model file - export one with `poles export --weights best.pt`")
-    if path.suffix == ".pt":
-        raise ValueError(f"{path}: a PyTorch checkpoint; the runtime runs its ONNX export - "
-                         f"`poles export --weights {path} --out {path.with_suffix('.onnx')}`")
-    options = ort.SessionOptions()
-    options.intra_op_num_threads = threads or os.cpu_count() or 1
-    options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
-    # Idle worker threads sleep instead of spinning: the robot's other processes need the cores between frames.
-    options.add_session_config_entry("session.intra_op.allow_spinning", "0")
-    try:
-        return ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
-    except Exception as exc:  # onnxruntime raises several private exception types
-        raise ValueError(f"{path}: not a readable ONNX model ({str(exc).splitlines()[0][:200]}) - "
-                         "re-export it with `poles export`") from None
+class LandmarkDetector(PoleModel):
+    """Runs a YOLOv8-seg ONNX pole model on BGR frames (masks, boxes, rotated boxes).
 
-
-class LandmarkDetector:
-    """Runs a YOLOv8-seg ONNX pole model on BGR frames.
-
-    ``model`` None runs a pole model shipped with naoslam: ``profile="accurate"`` (the default) the YOLOv8n-seg for
-    offline work, ``profile="robot"`` the small one that keeps up with the Nao's camera on its Atom. ``conf`` None uses the threshold stored in the model
+    ``model``: a shipped model's name or an ONNX path (default the accurate model, ``shipped``); the robot's
+    two-stage model is opened by :func:`load_detector`. ``conf`` None uses the threshold stored in the model
     (``operating_conf``), else ``DEFAULT_CONF``. ``classes`` is the class list the caller expects (default the six
     pole codes); a model trained on other names is refused. Pass ``classes=None`` to accept any model.
     ``input_width`` runs a model exported with ``--dynamic`` (the shipped ones are) at a smaller scale than it was
     exported at, its height in proportion: fewer pixels for a slower CPU, and poles under about 16 px wide lost
-    (docs/camera-pose.md, "Engines and the on-robot budget"). None keeps the model's own input size. ``threads`` None runs one
-    inference thread per core; ``iou`` is the NMS overlap (0-1] above which the lower-scored box of a class is dropped.
+    (docs/camera-pose.md, "Engines and the on-robot budget"). None keeps the model's own input size. ``threads`` None
+    runs one inference thread per core; ``iou`` is the NMS overlap (0-1] above which the lower-scored box of a class
+    is dropped.
     """
 
-    def __init__(self, model: Path | str | None = None, conf: float | None = None, iou: float = 0.7,
+    def __init__(self, model: Path | str = "shipped", conf: float | None = None, iou: float = 0.7,
                  max_det: int = 300, classes: tuple[str, ...] | None = CLASSES, threads: int | None = None,
-                 engine: str = "onnxruntime", input_width: int | None = None, profile: str | None = None):
-        if model is not None and profile is not None:
-            raise ValueError(f"give a model or a profile, not both (model {model}, profile {profile!r})")
-        if engine not in ENGINES:
-            raise ValueError(f"engine {engine!r} is not one of {', '.join(ENGINES)}")
-        if threads is not None and threads < 1:
-            raise ValueError(f"threads {threads}: give 1 or more, or None for one per core")
+                 engine: str = "onnxruntime", input_width: int | None = None, session=None):
+        check_options(engine, threads)
         if not 0.0 < iou <= 1.0:
             raise ValueError(f"NMS IoU threshold {iou} must lie above 0 and at most 1 (default 0.7)")
         if max_det < 1:
             raise ValueError(f"max_det {max_det}: keep at least 1 detection per frame (default 300)")
-        self.path = resolve_model(model) if model is not None else profile_model(profile or "accurate")
-        self.session = load_session(self.path, threads)
-        self.info = ModelInfo.from_metadata(self.session.get_modelmeta().custom_metadata_map, self.path)
-        if classes is not None and tuple(self.info.classes) != tuple(classes):
-            raise ValueError(f"{self.path}: the model's classes {list(self.info.classes)} are not the pole classes "
-                             f"{list(classes)} - train on a dataset whose data.yaml names them in this order")
+        super().__init__(resolve_model(model), threads, session)
+        if is_crop_model(self.info):
+            raise ValueError(f"{self.path}: a two-stage robot model, not a YOLOv8-seg one - open it with "
+                             f"naoslam.load_detector({model_argument(self.path)!r})")
+        check_classes(self, classes)
         self._check_signature()
         self.input_hw = self.info.input_hw if input_width is None else self._scaled_input_hw(input_width)
         self.conf = (self.stored_conf or DEFAULT_CONF) if conf is None else valid_confidence(conf)
@@ -145,59 +110,11 @@ class LandmarkDetector:
         self.engine = engine
         self._openvino = OpenVinoForward(self.path, threads) if engine == "openvino" else None
         self._letterboxes: dict[tuple[int, int], Letterbox] = {}
-        self.gate_rejections: list[tuple[Detection, str]] = []
-        self.gate_rejected = 0
-        calibration = self.stored_calibration  # its camera's field of view holds at any input width
-        #: The camera's horizontal field of view for the ground-plane gate: the calibration's, else the Nao's.
-        self.hfov_deg = calibration.hfov_deg if calibration is not None else NAO_HFOV_DEG
 
     @property
-    def classes(self) -> tuple[str, ...]:
-        return self.info.classes
-
-    @property
-    def stored_conf(self) -> float | None:
-        """The confidence threshold the model was shipped to run at (``operating_conf`` in its metadata), if any."""
-        stored = self.info.extra.get(OPERATING_CONF_KEY)
-        return float(stored) if stored is not None else None
-
-    @property
-    def stored_calibration(self) -> RangeCalibration | None:
-        """The range calibration stored in the model by ``poles calibrate --embed`` (None if there is none)."""
-        data = self.info.extra.get("calibration")
-        try:
-            return RangeCalibration.from_dict(data) if data else None
-        except (ValueError, TypeError, KeyError) as error:
-            raise ValueError(f"{self.path}: the calibration in the model is not one ({error}) - store a new one "
-                             f"with `poles calibrate --embed {model_argument(self.path)}`") from None
-
-    @property
-    def calibration(self) -> RangeCalibration | None:
-        """The stored calibration, refused (ValueError) when it was measured at another input width than this
-        detector runs the model at."""
-        stored = self.stored_calibration
-        return self.check_calibration(stored) if stored else None
-
-    @property
-    def usable_calibration(self) -> RangeCalibration | None:
-        """The stored calibration where it holds at this detector's input width, else None: no ranges rather than
-        wrong ones."""
-        stored = self.stored_calibration
-        return stored if stored is not None and self.fits_calibration(stored) else None
-
-    def fits_calibration(self, calibration: RangeCalibration) -> bool:
-        """Whether ``calibration``'s laws hold for this detector's masks: measured at its input width, or on labels."""
-        return calibration.input_width in (None, self.input_hw[1])
-
-    def check_calibration(self, calibration: RangeCalibration) -> RangeCalibration:
-        """``calibration``, or ValueError naming the fix when it was measured at another input width."""
-        if not self.fits_calibration(calibration):
-            measured, width = calibration.input_width, self.input_hw[1]
-            raise ValueError(f"{self.path}: the range calibration was measured at {measured} px input, the model runs "
-                             f"at {width} px here, where its masks read other sizes - run it at {measured} "
-                             f"(input_width={measured}, --imgsz {measured}) or calibrate at {width} "
-                             f"(`poles calibrate --model {model_argument(self.path)} --imgsz {width}`)")
-        return calibration
+    def calibration_width(self) -> int:
+        """Its masks' pixel sizes change with the input width, so a calibration must be measured at it."""
+        return self.input_hw[1]
 
     def _check_signature(self) -> None:
         """Refuse a model whose outputs are not a segmentation head for its classes: (1, 4 + nc + nm, N) predictions
@@ -252,10 +169,6 @@ class LandmarkDetector:
             return self._openvino(blob)
         return self.session.run(None, {self.input_name: blob})
 
-    def ground_view(self, frame_hw: tuple[int, int], camera_pose: CameraPose) -> GroundView:
-        """The floor as this detector's camera sees it in a frame of ``frame_hw`` from ``camera_pose``."""
-        return GroundView(PinholeCamera(frame_hw[1], frame_hw[0], self.hfov_deg), camera_pose)
-
     def __call__(self, frame: np.ndarray, camera_pose: CameraPose | None = None, crop: bool = True,
                  view: GroundView | None = None) -> list[Detection]:
         """Detections in one BGR frame, best first.
@@ -278,13 +191,7 @@ class LandmarkDetector:
         self.gate_rejections = []
         if view is None:
             return detections
-        kept = []
-        for detection in detections:
-            reason = view.check(detection.mask, detection.mask_origin)
-            if reason is None:
-                kept.append(detection)
-            else:
-                self.gate_rejections.append((detection, reason))
+        kept, self.gate_rejections = ground_gate(view, detections)
         self.gate_rejected += len(self.gate_rejections)
         return kept
 
@@ -317,6 +224,28 @@ class LandmarkDetector:
         centre_column = mask_centre_column(mask, origin) if rotated else float((frame_box[0] + frame_box[2]) / 2)
         return Detection(class_id, self.info.classes[class_id], score, tuple(float(v) for v in frame_box), mask,
                          origin, rotated, centre_column)
+
+
+def load_detector(model: Path | str | None = "shipped", conf: float | None = None, threads: int | None = None,
+                  engine: str = "onnxruntime", input_width: int | None = None,
+                  classes: tuple[str, ...] | None = CLASSES) -> "LandmarkDetector | CropDetector":
+    """The detector for a model: ``shipped`` (also for None), ``shipped-int8``, ``shipped-robot`` or an ONNX path. A
+    YOLOv8-seg model gives a ``LandmarkDetector``, a two-stage robot model a ``CropDetector``; both are called the
+    same way (frame and optional camera pose or ground view in, ``Detection`` objects out)."""
+    path = resolve_model("shipped" if model is None else model)
+    check_options(engine, threads)
+    session = load_session(path, threads)
+    info = ModelInfo.from_metadata(session.get_modelmeta().custom_metadata_map, path)
+    if not is_crop_model(info):
+        return LandmarkDetector(path, conf=conf, threads=threads, engine=engine, input_width=input_width,
+                                classes=classes, session=session)
+    if input_width is not None:
+        raise ValueError(f"{path}: a two-stage robot model runs on the frame's own pixels - leave out the input "
+                         f"width ({input_width})")
+    detector = CropDetector(path, conf=None if conf is None else valid_confidence(conf), threads=threads,
+                            engine=engine, session=session)
+    check_classes(detector, classes)
+    return detector
 
 
 def shipped_calibration() -> RangeCalibration | None:

@@ -36,4 +36,4 @@ class OpenVinoForward:
             model.reshape({model.inputs[0].any_name: list(shape)})
             self.compiled[shape] = self.core.compile_model(model, "CPU", self.config)
         result = self.compiled[shape](blob)
-        return [result[0], result[1]]
+        return [result[i] for i in range(len(result))]

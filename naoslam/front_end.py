@@ -20,21 +20,24 @@ class FrontEnd:
     """Frames in, measurements out.
 
     ``model``: a shipped model's name (``shipped``, ``shipped-int8``, ``shipped-robot``), an ONNX path, a
-    ``LandmarkDetector`` already made, or ``colour-filter``. ``calibration`` None uses the one stored in the model
+    detector already made (``load_detector``'s), or ``colour-filter``. ``calibration`` None uses the one stored in the model
     (the shipped model's for the colour filter). ``min_confidence`` None uses the model's operating threshold, else
-    the thesis's 0.85. ``input_width`` runs a ``--dynamic`` model at that width; ``threads`` as ``LandmarkDetector``.
+    the thesis's 0.85. ``input_width`` runs a ``--dynamic`` model at that width; ``threads`` and ``engine``
+    (``onnxruntime`` or ``openvino``) as ``load_detector``.
     """
 
     def __init__(self, model="shipped", calibration: RangeCalibration | None = None,
-                 min_confidence: float | None = None, input_width: int | None = None, threads: int | None = None):
+                 min_confidence: float | None = None, input_width: int | None = None, threads: int | None = None,
+                 engine: str = "onnxruntime"):
         if model == COLOUR_FILTER:
             self.detector, self.calibration = None, _colour_calibration(calibration)
             self._colour_filter = ColourFilter()
             return
-        from naoslam.detector import LandmarkDetector
+        from naoslam.detector import load_detector
+        from naoslam.pole_model import PoleModel
 
-        self.detector = model if isinstance(model, LandmarkDetector) else \
-            LandmarkDetector(model, input_width=input_width, threads=threads)
+        self.detector = model if isinstance(model, PoleModel) else \
+            load_detector(model, input_width=input_width, threads=threads, engine=engine)
         threshold = min_confidence if min_confidence is not None else self.detector.stored_conf or THESIS_CONF
         self.detector.conf = min(self.detector.conf, threshold)
         self.calibration = self.detector.check_calibration(calibration) if calibration else self.detector.calibration

@@ -78,6 +78,16 @@ class GroundView:
         t = self.pose.z / -ray[2]
         return np.array([t * ray[0], t * ray[1]])
 
+    def pixels_per_metre(self, u: np.ndarray, v: np.ndarray, height_m: float) -> np.ndarray:
+        """At each pixel (u, v), how many pixels one metre spans for an object there whose point at that pixel
+        stands ``height_m`` above the floor: the focal length over the depth at which the pixel's ray meets that
+        height. NaN where the ray does not come down to it in front of the camera (the object would float)."""
+        rays = self.camera.pixel_rays(u, v) @ self._rotation.T
+        drop = self.pose.z - height_m
+        with np.errstate(divide="ignore", invalid="ignore"):
+            depth = np.where(rays[..., 2] < -1e-9, drop / -rays[..., 2], np.nan)
+        return np.where(depth > 0, self.camera.focal_px / depth, np.nan)
+
     def project(self, point: np.ndarray) -> np.ndarray | None:
         """Pixel (u, v) of a point (x, y, z) relative to the camera's ground position; None behind the camera."""
         in_camera = (np.asarray(point, float) - np.array([0.0, 0.0, self.pose.z])) @ self._rotation
@@ -105,26 +115,26 @@ class GroundView:
         highest = min(self.horizon_row(0.0), self.horizon_row(float(self.camera.width)))
         return int(np.clip(math.floor(highest - CROP_MARGIN_PX), 0, self.camera.height - 1))
 
-    def reaches_bottom(self, mask: np.ndarray, origin: tuple[int, int] = (0, 0)) -> bool:
-        """True when the mask comes within ``BOTTOM_MARGIN_PX`` of the frame's last row: the foot may lie below the
+    def reaches_bottom(self, extent: "PoleExtent") -> bool:
+        """True when the pole comes within ``BOTTOM_MARGIN_PX`` of the frame's last row: the foot may lie below the
         frame (a network's mask, upsampled from its prototypes, can stop a few pixels short of the border)."""
-        rows = np.flatnonzero(mask.any(axis=1))
-        return bool(len(rows)) and origin[1] + rows[-1] >= self.camera.height - 1 - BOTTOM_MARGIN_PX
+        return extent.bottom[1] >= self.camera.height - BOTTOM_MARGIN_PX
 
     def foot(self, mask: np.ndarray, origin: tuple[int, int] = (0, 0)) -> Foot | None:
-        """The pole's foot from its mask's lowest row; None when the mask reaches the frame's bottom (the foot may
-        be cut off), or the row's ray misses the floor or meets it too far away.
+        """The pole's foot from its mask's lowest row (see :meth:`foot_of`)."""
+        extent = PoleExtent.of_mask(mask, origin)
+        return self.foot_of(extent) if extent is not None else None
+
+    def foot_of(self, extent: "PoleExtent") -> Foot | None:
+        """The pole's foot from its lowest point; None when the pole reaches the frame's bottom (the foot may be cut
+        off), or the point's ray misses the floor or meets it too far away.
 
         The lowest silhouette point is the base circle's edge nearest the camera, so the axis lies one radius
         further along the same bearing.
         """
-        rows = np.flatnonzero(mask.any(axis=1))
-        if not len(rows) or self.reaches_bottom(mask, origin):
+        if self.reaches_bottom(extent):
             return None
-        bottom = rows[-1]
-        columns = np.flatnonzero(mask[bottom])
-        u = origin[0] + float(columns.mean()) + 0.5
-        v = origin[1] + float(bottom) + 1.0  # the lower edge of the lowest mask row
+        u, v = extent.bottom
         point = self.ground_point(u, v)
         if point is None:
             return None
@@ -189,18 +199,18 @@ class GroundView:
 
     def check(self, mask: np.ndarray, origin: tuple[int, int] = (0, 0),
               tolerance: float = HEIGHT_TOLERANCE) -> str | None:
-        """Why this mask cannot be a pole standing on the floor, or None when it can."""
-        rows = np.flatnonzero(mask.any(axis=1))
-        if not len(rows):
-            return "empty mask"
-        top_row = origin[1] + rows[0]
-        top_columns = np.flatnonzero(mask[rows[0]])
-        top_column = origin[0] + float(top_columns.mean()) + 0.5
+        """Why this mask cannot be a pole standing on the floor, or None when it can (see :meth:`check_extent`)."""
+        extent = PoleExtent.of_mask(mask, origin)
+        return self.check_extent(extent, tolerance) if extent is not None else "empty mask"
+
+    def check_extent(self, extent: "PoleExtent", tolerance: float = HEIGHT_TOLERANCE) -> str | None:
+        """Why a pole with this top and foot cannot stand on the floor, or None when it can."""
+        top_column, top_row = extent.top
         if top_row < self.horizon_row(top_column) - HORIZON_MARGIN_PX:
             return "reaches above the horizon: taller than the camera is high"
-        if self.reaches_bottom(mask, origin):
+        if self.reaches_bottom(extent):
             return None  # the foot may be below the frame: nothing more to check
-        foot = self.foot(mask, origin)
+        foot = self.foot_of(extent)
         if foot is None:
             return "foot above the horizon"
         expected = self.expected_height_px(foot)
@@ -209,3 +219,42 @@ class GroundView:
         if measured > expected * (1 + tolerance) or (not cut_at_top and measured < expected / (1 + tolerance)):
             return f"{measured:.0f} px tall where a pole at {foot.range_m:.1f} m is {expected:.0f} px"
         return None
+
+
+def ground_gate(view: GroundView, detections: list) -> tuple[list, list[tuple[object, str]]]:
+    """The detections (anything with an ``extent``) that can stand on the floor, and (detection, reason) for those
+    that cannot."""
+    kept, rejected = [], []
+    for detection in detections:
+        extent = detection.extent
+        reason = view.check_extent(extent) if extent is not None else "empty mask"
+        if reason is None:
+            kept.append(detection)
+        else:
+            rejected.append((detection, reason))
+    return kept, rejected
+
+
+@dataclass(frozen=True)
+class PoleExtent:
+    """A pole's highest and lowest image points (u, v): the middle of its first row at that row's top, and the
+    middle of its last row at that row's lower edge, where the base meets the floor."""
+
+    top: tuple[float, float]
+    bottom: tuple[float, float]
+
+    @classmethod
+    def of_mask(cls, mask: np.ndarray, origin: tuple[int, int] = (0, 0)) -> "PoleExtent | None":
+        """The extent of a mask whose (0, 0) lies at ``origin`` (x, y) of the frame; None for an empty mask."""
+        rows = np.flatnonzero(mask.any(axis=1))
+        if not len(rows):
+            return None
+        top_column = origin[0] + float(np.flatnonzero(mask[rows[0]]).mean()) + 0.5
+        bottom_column = origin[0] + float(np.flatnonzero(mask[rows[-1]]).mean()) + 0.5
+        return cls((top_column, float(origin[1] + rows[0])), (bottom_column, float(origin[1] + rows[-1] + 1)))
+
+    @classmethod
+    def of_box(cls, box: tuple[float, float, float, float]) -> "PoleExtent":
+        """The extent of an upright pole's box (x0, y0, x1, y1): the middle of its top and bottom edges."""
+        x0, y0, x1, y1 = box
+        return cls(((x0 + x1) / 2, float(y0)), ((x0 + x1) / 2, float(y1)))

@@ -233,7 +233,8 @@ class MeasurementModel:
                 width, height = view.level_size(width, height, range_m, bearing)
                 range_m, range_std, used = self.calibration.range_from_box(width, height, image_width,
                                                                            self.range_method, d.centre_column)
-            foot = view.foot(d.mask, d.mask_origin) if view is not None else None
+            extent = d.extent if view is not None else None
+            foot = view.foot_of(extent) if extent is not None else None
             if foot is not None:
                 foot_std = view.foot_range_std(foot, pitch_std_rad=self.pitch_std_rad)
                 fused = fuse_with_foot(range_m, range_std, foot.range_m, foot_std)

@@ -3,9 +3,10 @@ confidence threshold it runs at (``operating_conf``).
 
 - the accurate model (``shipped``, and its INT8 copy ``shipped-int8``): YOLOv8n-seg at 640 px, for offline analysis,
   pre-labelling and machines with a vector unit;
-- the robot model (``shipped-robot``): a network with a thirteenth of its parameters at 320 px, for the Nao's Atom.
+- the robot model (``shipped-robot``): the two-stage front end's crop network (pink candidates at full resolution,
+  then a small network per candidate; ``naoslam.crop_detector``), for the Nao's Atom.
 
-``LandmarkDetector()`` runs the accurate one, ``LandmarkDetector(profile="robot")`` the robot one.
+``load_detector("shipped")`` opens the accurate one, ``load_detector("shipped-robot")`` the robot one.
 """
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ MODELS_DIR = Path(__file__).resolve().parent / "models"
 #: Stem of the accurate model's files.
 SHIPPED_NAME = "poles-yolov8n-seg"
 #: Stem of the robot model's file.
-ROBOT_NAME = "poles-robot-seg"
+ROBOT_NAME = "poles-robot"
 #: Metadata key of the confidence threshold a model is meant to run at.
 OPERATING_CONF_KEY = "operating_conf"
 #: The threshold of a model that stores none (Ultralytics' predict default), in every command and on the robot.
@@ -24,10 +25,6 @@ DEFAULT_CONF = 0.25
 #: Names that stand for the shipped models wherever a model path is asked for, and their files.
 SHIPPED_FILES = {"shipped": f"{SHIPPED_NAME}.onnx", "shipped-int8": f"{SHIPPED_NAME}-int8.onnx",
                  "shipped-robot": f"{ROBOT_NAME}.onnx"}
-#: ``LandmarkDetector`` profiles and the shipped model each one runs.
-PROFILES = {"accurate": "shipped", "robot": "shipped-robot"}
-
-
 def shipped_path(int8: bool = False) -> Path:
     """Where the accurate model (FP32, or the INT8 copy) lives in the package."""
     return MODELS_DIR / SHIPPED_FILES["shipped-int8" if int8 else "shipped"]
@@ -48,13 +45,6 @@ def model_argument(path: Path) -> str:
 def resolve_model(name: str | Path) -> Path:
     """A shipped model's name as its path; any other name as a path."""
     return _installed(MODELS_DIR / SHIPPED_FILES[str(name)]) if str(name) in SHIPPED_FILES else Path(name)
-
-
-def profile_model(profile: str) -> Path:
-    """The shipped model a ``LandmarkDetector`` profile runs (``accurate`` or ``robot``)."""
-    if profile not in PROFILES:
-        raise ValueError(f"profile {profile!r} is not one of {', '.join(PROFILES)}")
-    return resolve_model(PROFILES[profile])
 
 
 def shipped_model(int8: bool = False) -> Path:

@@ -3,6 +3,8 @@ optional ../shared folder."""
 from __future__ import annotations
 
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import cv2
@@ -24,6 +26,18 @@ def rendered_pole(code: str, range_m: float, angle_deg: float, seed: int):
                               angle_deg=angle_deg)
     frame = render_scene(scene)
     return cv2.cvtColor((frame.image * 255 + 0.5).astype(np.uint8), cv2.COLOR_RGB2BGR), frame
+
+
+#: Modules a runtime process must never load: the training side and its libraries.
+TRAINING_SIDE = ("torch", "ultralytics", "albumentations", "detector", "export")
+
+
+def assert_runs_without_training_side(statement: str) -> None:
+    """Run ``statement`` (after ``import numpy as np``) in a fresh Python and fail if it loaded the training side."""
+    code = (f"import sys, numpy as np; {statement}; "
+            f"bad = [m for m in {TRAINING_SIDE!r} if m in sys.modules]; print(bad); sys.exit(1 if bad else 0)")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert result.returncode == 0, result.stdout + result.stderr
 
 
 @pytest.fixture(scope="session")

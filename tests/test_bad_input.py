@@ -22,7 +22,7 @@ import yaml
 
 from detector.cli import main
 from detector.datasets import load_dataset
-from detector.datasets.io import OUTPUT_MARKER
+from detector.outputs import OUTPUT_MARKER
 
 
 def tree_hash(root: Path) -> str:

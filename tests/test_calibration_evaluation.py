@@ -16,7 +16,7 @@ from detector.model_files import load_calibration
 from calibration.samples import measure_samples, open_ranged
 from detector.cli import main
 from detector.datasets import load_dataset
-from detector.datasets.io import OUTPUT_MARKER
+from detector.outputs import OUTPUT_MARKER
 from detector.datasets.truth import load_truth
 from detector.evaluation.by_width import label_width_px, recall_by_width, width_bin_names
 from detector.evaluation.counting import (best_threshold, confusion_matrix, evaluate_image, outcome, precision_recall,
@@ -308,7 +308,7 @@ def _evaluate(name, truth_classes, truth_masks, classes, masks, scores=None):
     """``evaluate_image`` of detections of ``classes`` with ``masks`` (full frame) and ``scores`` (default 0.9)."""
     detections = [Detection.from_mask(c, s, m) for c, s, m in zip(classes, scores or [0.9] * len(classes), masks)]
     shape = (truth_masks or masks or [np.zeros((100, 100), bool)])[0].shape
-    return evaluate_image(name, truth_classes, truth_masks, [None] * len(truth_classes), detections, shape, False)
+    return evaluate_image(name, truth_classes, truth_masks, [None] * len(truth_classes), detections, shape, "mask")
 
 
 def test_perfect_predictions_score_one():

@@ -21,7 +21,8 @@ from detector.stages import StageFailed, StageLedger
 from detector.synth.generate import SynthJob, generate_dataset
 from detector.synth.scene import SceneConfig
 from detector.synth.team_paint import measure_team_paint
-from naoslam.detector import LandmarkDetector
+from naoslam.crop_detector import CropDetector
+from naoslam.detector import LandmarkDetector, load_detector
 
 #: A tiny recipe: 64 px, one augmented copy, a few seconds of training, 10-frame rendered sets.
 TINY = FinetuneRecipe(minutes=0.3, copies=1, imgsz=64, evaluation_frames=10)
@@ -75,13 +76,16 @@ def test_the_robot_model_is_fine_tuned_and_shipped_as_the_robot_model_is(export,
     from detector.model_files import read_info
     from naoslam.shipped import OPERATING_CONF_KEY, robot_path
 
-    results = run_finetune(export, tmp_path / "run", FinetuneRecipe(model="robot", minutes=0.2, copies=1, imgsz=64,
+    results = run_finetune(export, tmp_path / "run", FinetuneRecipe(model="robot", minutes=0.2, epochs=2, copies=1,
                                                                     evaluation_frames=10))
     model = Path(results["export model"]["fp32"])
     assert model.name == "poles-robot-finetuned.onnx" and results["export model"]["int8"] is None
-    assert read_info(model).extra[OPERATING_CONF_KEY] == read_info(robot_path()).extra[OPERATING_CONF_KEY]
-    assert results["evaluate"]["conf"] == read_info(robot_path()).extra[OPERATING_CONF_KEY]
-    assert LandmarkDetector(model).any_input_size  # runs on the horizon band, as the shipped robot model does
+    shipped = read_info(robot_path()).extra
+    assert read_info(model).extra[OPERATING_CONF_KEY] == shipped[OPERATING_CONF_KEY] == results["evaluate"]["conf"]
+    assert read_info(model).extra["calibration"] == shipped["calibration"]
+    assert results["train"]["epochs"] == 2 and [row["share"] for row in results["blend"]["shares"]] == list(BLEND_SHARES)
+    detector = load_detector(model)
+    assert isinstance(detector, CropDetector) and detector.calibration is not None
 
 
 def test_the_blend_ships_half_and_half_unless_its_valid_frames_show_another_share_better(finished):
@@ -216,9 +220,8 @@ def test_the_recipe_refuses_a_share_that_leaves_no_frame_of_yours_and_shares_the
 
 def test_each_starting_model_brings_its_measured_recipe_and_a_flag_overrides_it():
     robot = FinetuneRecipe(model="robot")
-    assert (robot.rendered_share, robot.epoch_cap, robot.rehearsal_frames(88)) == (0.75, 40, 264)
-    assert {"rehearsal_share": None, "rendered_share": 0.75, "epoch_cap": 40, "frozen_layers": 8}.items() <= \
-        robot.settings().items()
+    assert (robot.rendered_share, robot.epoch_cap, robot.rehearsal_frames(88)) == (0.75, 30, 264)
+    assert {"rehearsal_share": None, "rendered_share": 0.75, "epoch_cap": 30}.items() <= robot.settings().items()
     assert (FinetuneRecipe().rendered_share, FinetuneRecipe().epoch_cap) == (0.5, None)
     told = FinetuneRecipe(model="robot", rehearsal_share=0.0, epochs=5)
     assert (told.rendered_share, told.epoch_cap, told.rehearsal_frames(88)) == (0.0, 5, 0)
@@ -227,13 +230,15 @@ def test_each_starting_model_brings_its_measured_recipe_and_a_flag_overrides_it(
 
 
 def test_training_interrupted_after_an_epoch_resumes_from_it(export, tmp_path, monkeypatch):
-    """Ctrl-C during training keeps the stages before it and the epochs done; the rerun continues from last.pt."""
+    """Ctrl-C during training keeps the stages before it and the epochs done; the rerun continues from last.pt with
+    what is left of the training's minutes."""
     from detector.training import train as training
 
-    real_train, calls = training._train, []
+    real_train, calls, hours = training._train, [], []
 
     def interrupted_after_one_epoch(model, tuner, **options):
         calls.append(options.get("resume", False))
+        hours.append(options.get("time"))
         if len(calls) == 1:
             def stop(trainer):
                 raise KeyboardInterrupt
@@ -246,6 +251,7 @@ def test_training_interrupted_after_an_epoch_resumes_from_it(export, tmp_path, m
     assert (tmp_path / "run" / "train" / "weights" / "last.pt").is_file()
     results = run_finetune(export, tmp_path / "run", TINY)
     assert calls == [False, True]  # the second call resumed the first run
+    assert hours[1] < hours[0]  # with what the first left of its budget
     assert results["train"]["epochs"] >= 2 and (tmp_path / "run" / "models" / "poles-finetuned.onnx").is_file()
 
 

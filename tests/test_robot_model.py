@@ -1,5 +1,5 @@
-"""The robot model: shipped, reachable by every name a command takes, and runnable at the Atom's instruction set
-(it is run torch-free beside the accurate model in test_shipped_model)."""
+"""The robot model: the two-stage front end shipped, reachable by every name a command takes, measuring as the
+accurate model does, and runnable at the Atom's instruction set; the robot-sized YOLOv8 architectures still train."""
 from __future__ import annotations
 
 import os
@@ -10,29 +10,29 @@ import numpy as np
 import onnx
 import pytest
 
-from naoslam.detector import LandmarkDetector
+from naoslam.crop_detector import CropDetector
+from naoslam.detector import LandmarkDetector, load_detector
 from naoslam.front_end import FrontEnd
 from naoslam.measurement import Measurement
 from naoslam.shipped import OPERATING_CONF_KEY, resolve_model, robot_path, shipped_path
 from tests.conftest import rendered_pole
 
 
-def test_the_robot_profile_and_its_name_resolve_to_the_robot_model():
-    assert LandmarkDetector(profile="robot").path == robot_path()
-    assert LandmarkDetector(profile="accurate").path == shipped_path()
-    assert resolve_model("shipped-robot") == robot_path()
-    with pytest.raises(ValueError, match="not one of accurate, robot"):
-        LandmarkDetector(profile="fast")
-    with pytest.raises(ValueError, match="a model or a profile, not both"):
-        LandmarkDetector("shipped", profile="robot")
+def test_the_robot_name_opens_the_two_stage_front_end():
+    detector = load_detector("shipped-robot")
+    assert isinstance(detector, CropDetector) and detector.path == robot_path()
+    assert resolve_model("shipped-robot") == robot_path() and load_detector("shipped").path == shipped_path()
+    with pytest.raises(ValueError, match="two-stage robot model"):
+        LandmarkDetector("shipped-robot")
 
 
-def test_the_robot_model_carries_its_calibration_and_threshold_at_its_own_input_width():
-    detector = LandmarkDetector(profile="robot")
-    assert detector.input_hw == (256, 320)
+def test_the_robot_model_carries_its_calibration_threshold_and_training_record():
+    detector = load_detector("shipped-robot")
     assert 0.0 < detector.info.extra[OPERATING_CONF_KEY] < 1.0 and detector.conf == detector.stored_conf
-    calibration = detector.calibration  # refused if measured at another input width
-    assert calibration.input_width == 320 and calibration.width_law.b < 0 and calibration.height_law.b < 0
+    calibration = detector.calibration  # measured on its own boxes, in the frame's pixels
+    assert calibration.input_width is None and calibration.width_law.b < 0 and calibration.height_law.b < 0
+    training = detector.info.extra["training"]
+    assert training["minutes"] > 0 and "cores" in training["hardware"]
 
 
 @pytest.mark.parametrize("model", ["shipped-robot", "shipped-int8"])
@@ -47,19 +47,20 @@ def test_front_end_ranges_a_rendered_pole_within_the_calibrations_error(model):
     assert measurement.detection.name == "gp"
 
 
-def test_the_colour_filter_and_the_models_give_the_same_measurement_type():
+def test_the_colour_filter_and_the_models_give_the_same_measurement():
     image, _ = rendered_pole("pb", 1.5, 0.0, seed=8)
     found = {name: FrontEnd(name)(image) for name in ("colour-filter", "shipped-robot", "shipped")}
     assert all(len(measurements) == 1 for measurements in found.values()), found
     assert {type(measurements[0]) for measurements in found.values()} == {Measurement}
     assert {measurements[0].signature for measurements in found.values()} == {"pb"}
+    robot, accurate = found["shipped-robot"][0], found["shipped"][0]
+    assert robot.detection.box_only and not accurate.detection.box_only
+    assert abs(robot.range_m - accurate.range_m) < 3 * robot.range_std
+    assert abs(robot.bearing_rad - accurate.bearing_rad) < np.radians(1)
 
 
-def test_the_robot_model_is_rewritten_for_the_atom_and_compiles_at_its_instruction_set():
-    """OpenVINO's CPU plugin finds no SSE4.1 primitive for Resize and a slow one for ConvTranspose; the shipped
-    robot model's graph has neither, and compiles under the cap."""
-    graph = onnx.load(str(robot_path())).graph
-    assert not {node.op_type for node in graph.node} & {"Resize", "ConvTranspose"}
+def test_the_robot_model_compiles_at_the_atom_s_instruction_set():
+    """OpenVINO's CPU plugin finds no SSE4.1 primitive for some operators (Resize); the crop network has none."""
     code_run = ("import openvino as ov; core = ov.Core(); "
                 f"core.compile_model(core.read_model({str(robot_path())!r}), 'CPU', "
                 "{'INFERENCE_NUM_THREADS': 1, 'INFERENCE_PRECISION_HINT': 'f32'}); print('compiled')")

@@ -21,7 +21,7 @@ from detector.model_files import SHIPPED_WEIGHTS
 from detector.training.train import TrainSettings, parse_hyperparameters, train_model
 from export.ship import SIZE_BUDGET, shipped_files
 from naoslam.camera import CameraPose
-from naoslam.detector import LandmarkDetector
+from naoslam.detector import LandmarkDetector, load_detector
 from naoslam.shipped import OPERATING_CONF_KEY, shipped_model
 from tests.conftest import REPOSITORY, rendered_pole
 
@@ -59,16 +59,16 @@ def test_version_names_the_shipped_model_a_user_runs(capsys):
     assert f"threshold {LandmarkDetector().stored_conf}" in printed and "onnxruntime 1." in printed
 
 
-@pytest.mark.parametrize("profile, min_iou", [("accurate", 0.8), ("robot", 0.7)])
+@pytest.mark.parametrize("model, min_iou", [("shipped", 0.8), ("shipped-robot", 0.7)])
 @pytest.mark.parametrize("code", ["bp", "pg", "yp"])
-def test_shipped_onnx_finds_a_rendered_pole_without_torch(code, profile, min_iou, tmp_path):
+def test_shipped_onnx_finds_a_rendered_pole_without_torch(code, model, min_iou, tmp_path):
     """Each shipped model, run by the runtime alone, outlines a rendered pole; nothing of the training side loads."""
     image, frame = rendered_pole(code, 1.5, -10.0, seed=3)
     cv2.imwrite(str(tmp_path / "frame.png"), image)
     np.save(tmp_path / "mask.npy", frame.poles[0].mask)
     code_run = (
         "import json, sys, cv2, numpy as np, naoslam; "
-        f"d = naoslam.LandmarkDetector(profile={profile!r}); found = d(cv2.imread({str(tmp_path / 'frame.png')!r})); "
+        f"d = naoslam.load_detector({model!r}); found = d(cv2.imread({str(tmp_path / 'frame.png')!r})); "
         f"truth = np.load({str(tmp_path / 'mask.npy')!r}); "
         "ious = [float((f.full_mask(truth.shape) & truth).sum() / (f.full_mask(truth.shape) | truth).sum()) for f in found]; "
         "print(json.dumps({'names': [f.name for f in found], 'ious': ious, 'conf': d.conf, "
@@ -92,13 +92,14 @@ def _nao_yuyv(frame_bgr: np.ndarray) -> np.ndarray:
     return np.dstack([y, chroma]).astype(np.uint8)
 
 
+@pytest.mark.parametrize("model, min_iou", [("shipped", 0.85), ("shipped-robot", 0.7)])
 @pytest.mark.parametrize("code, range_m, angle_deg", [("gp", 3.0, 15.0), ("pb", 2.0, -20.0), ("yp", 4.0, 0.0)])
-def test_shipped_onnx_finds_a_rendered_pole_in_the_nao_cameras_yuyv_buffer(code, range_m, angle_deg):
+def test_shipped_onnx_finds_a_rendered_pole_in_the_nao_cameras_yuyv_buffer(code, range_m, angle_deg, model, min_iou):
     image, frame = rendered_pole(code, range_m, angle_deg, seed=7)
     truth = frame.poles[0].mask
-    found = LandmarkDetector()(_nao_yuyv(image))
+    found = load_detector(model)(_nao_yuyv(image))
     assert [f.name for f in found] == [code]
-    assert (found[0].full_mask(truth.shape) & truth).sum() / (found[0].full_mask(truth.shape) | truth).sum() > 0.85
+    assert (found[0].full_mask(truth.shape) & truth).sum() / (found[0].full_mask(truth.shape) | truth).sum() > min_iou
 
 
 def _readme_python_block(containing: str) -> str:
@@ -285,7 +286,7 @@ def test_shipped_onnx_finds_no_pole_in_photographs_it_never_saw(model):
     """An independent check of "no false positives on frames without poles": the red, blue and pink objects in
     these 27 photographs (a flag, a cup, a rocket, a motorcycle, a blue bus, people in red and yellow, a villa's
     columns) must not become poles at the shipped threshold."""
-    detector = LandmarkDetector(model)
+    detector = load_detector(model)
     found = {name: [(d.name, round(d.confidence, 2)) for d in detector(frame)]
              for name, frame in _photographs().items()}
     assert len(found) == 27 and not any(found.values()), found

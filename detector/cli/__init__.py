@@ -9,15 +9,15 @@ from __future__ import annotations
 
 import argparse
 
-from detector.cli import (dataset_commands, demo_command, evaluation_commands, finetune_command, slam_command,
-                          training_commands)
+from detector.cli import (dataset_commands, demo_command, evaluation_commands, finetune_command, robot_command,
+                          slam_command, training_commands)
 from detector.cli.arguments import one_dataset
 from detector.cli.version import PrintVersion
 from detector.errors import run_command
 
 #: The command modules, in the order ``poles --help`` lists their commands: the pipeline's order.
-COMMAND_MODULES = (dataset_commands, training_commands, finetune_command, evaluation_commands, slam_command,
-                   demo_command)
+COMMAND_MODULES = (dataset_commands, training_commands, robot_command, finetune_command, evaluation_commands,
+                   slam_command, demo_command)
 
 
 def build_parser() -> argparse.ArgumentParser:

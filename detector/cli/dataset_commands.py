@@ -155,13 +155,14 @@ def _team_paint(export: Path):
 
 def _check(args: argparse.Namespace) -> int:
     from detector.datasets.check import check_dataset, listing_path, print_report, write_fixed_copy
-    from detector.datasets.io import check_output_folder
+    from detector.datasets.io import DATASET
+    from detector.outputs import check_output_folder
 
     if args.fix and args.out is None:
         raise ValueError("--fix needs --out CLEAN: the cleaned copy is never written in place")
     report = check_dataset(args.data)
     if args.fix:  # refused before the list of problems is written beside it
-        check_output_folder(args.out, args.force, report.dataset.input_folders())
+        check_output_folder(args.out, args.force, report.dataset.input_folders(), DATASET)
     print_report(report, show_notes=args.notes, full_list=listing_path(report.dataset, args.out if args.fix else None))
     if args.fix:
         print(f"cleaned copy: {write_fixed_copy(report, args.out, force=args.force)}")

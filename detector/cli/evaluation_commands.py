@@ -26,6 +26,10 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                                                            "(default: the one embedded in the ONNX model; for the "
                                                            "colour filter, the shipped model's colour law)")
     add_input_width_argument(evaluate, "a .pt checkpoint at 640 unless given; ONNX: ")
+    evaluate.add_argument("--pose", action="store_true",
+                          help="give ONNX front ends each frame's camera pose where annotations.json records it "
+                               "(`poles synth` writes it), as on the robot: the band below the horizon and the "
+                               "ground-plane gate")
     evaluate.add_argument("--out", type=Path, required=True, help="folder for metrics.json, plots and FP/FN overlays")
     evaluate.add_argument("--force", action="store_true", help="replace --out if it holds files")
     evaluate.set_defaults(run=_evaluate)
@@ -46,9 +50,10 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
 
 
 def _evaluate(args: argparse.Namespace) -> int:
-    from detector.model_files import load_calibration
-    from detector.datasets.io import output_folder
+    from detector.datasets.intake import open_dataset
     from detector.evaluation.predictors import make_predictor
+    from detector.model_files import load_calibration
+    from detector.outputs import output_folder
     from detector.evaluation.run import evaluate, print_metrics
 
     calibration = load_calibration(args.calibration) if args.calibration else None
@@ -57,11 +62,12 @@ def _evaluate(args: argparse.Namespace) -> int:
     predictors = [make_predictor(model, args.imgsz, calibration) for model in models]  # every model checked first
     for predictor, label in zip(predictors, _column_labels(models, [p.name for p in predictors])):
         predictor.name = label
-    with output_folder(args.out, args.force, existing(args.data, args.calibration, *map(Path, models))) as folder:
+    inputs = open_dataset(args.data, progress=False).input_folders() + existing(args.calibration, *map(Path, models))
+    with output_folder(args.out, args.force, inputs, "evaluation") as folder:
         for predictor in predictors:
             out = folder / predictor.name if len(models) > 1 else folder
             conf = args.conf if args.conf is not None else predictor.operating_conf or DEFAULT_CONF
-            rows.append(evaluate(predictor, args.data, out, args.split, conf))
+            rows.append(evaluate(predictor, args.data, out, args.split, conf, use_pose=args.pose))
     print_metrics(rows)
     print(f"wrote {args.out} (metrics.json, per_image.png, sweep.png, confusion.png, recall_by_width.png, errors/)")
     return 0

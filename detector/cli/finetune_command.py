@@ -8,6 +8,7 @@ from detector.cli.arguments import finite_number, positive_number, whole_number
 from detector.finetune.recipe import STARTING_MODELS, FinetuneRecipe
 
 DEFAULTS = FinetuneRecipe()
+ACCURATE, ROBOT = STARTING_MODELS["accurate"], STARTING_MODELS["robot"]
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
@@ -20,33 +21,34 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                                "give an earlier run's folder to resume it")
     finetune.add_argument("--model", choices=STARTING_MODELS, default=DEFAULTS.model,
                           help="the shipped model to start from: accurate (default; FP32 + INT8 out) or robot (the "
-                               "Nao-sized one at 320 px; FP32 out, dynamic input)")
+                               "two-stage front end for the Nao: its crop network; FP32 out)")
     finetune.add_argument("--minutes", type=positive_number, default=DEFAULTS.minutes,
                           help=f"the whole job's time on this machine (default {DEFAULTS.minutes:g}); training "
                                "gets what preparing and evaluating leave")
     finetune.add_argument("--epochs", type=whole_number(1),
-                          help="at most this many training epochs within the minutes (default: as many as the "
-                               "minutes allow for the accurate model, 40 for the robot one)")
+                          help="at most this many training epochs within the minutes (default: "
+                               f"{ACCURATE.epochs or 'as many as the minutes allow'} for the accurate model, "
+                               f"{ROBOT.epochs} for the robot one)")
     finetune.add_argument("--rename", action="append", metavar="OLD=NEW",
                           help="read the export's class OLD as landmark NEW (e.g. pink-blue=pb); repeat for each")
     finetune.add_argument("--rehearsal-share", type=finite_number,
                           help="share of the training frames rendered in your paint: far poles, frames without "
-                               "poles, look-alikes your export may not show (default 0.5 for the accurate model, "
-                               "0.75 for the robot one; 0: your frames alone)")
+                               f"poles, look-alikes your export may not show (default {ACCURATE.rehearsal_share:g} for "
+                               f"the accurate model, {ROBOT.rehearsal_share:g} for the robot one; 0: your frames alone)")
     finetune.add_argument("--backgrounds", type=Path,
                           help="frames of your own field without poles, from the robot's camera: "
-                               f"{DEFAULTS.backdrop_share:.0%} of the rendered frames are drawn over them, so the "
+                               f"{100 * DEFAULTS.backdrop_share:.0f} %% of the rendered frames are drawn over them, so the "
                                "fine-tune keeps seeing real clutter without poles (default: rendered rooms only)")
     finetune.add_argument("--freeze", type=whole_number(0), default=DEFAULTS.freeze,
-                          help="first layers kept as shipped (default: the starting model's backbone, 10 layers for "
-                               "the accurate model and 8 for the robot one; 0: none)")
+                          help="the accurate model's first layers kept as shipped (default: its backbone, "
+                               f"{ACCURATE.backbone_layers} layers; 0: none)")
     finetune.add_argument("--lr0", type=positive_number, default=DEFAULTS.lr0,
                           help=f"AdamW learning rate (default {DEFAULTS.lr0:g})")
     finetune.add_argument("--copies", type=whole_number(0), default=DEFAULTS.copies,
                           help=f"augmented copies of each of your training frames (default {DEFAULTS.copies}, "
                                "the thesis's)")
     finetune.add_argument("--imgsz", type=whole_number(32), default=DEFAULTS.imgsz,
-                          help="training image size (default: the starting model's, 640 or 320)")
+                          help=f"the accurate model's training image size (default {ACCURATE.imgsz})")
     finetune.add_argument("--evaluation-frames", type=whole_number(10), default=DEFAULTS.evaluation_frames,
                           help="frames in each rendered set the models are judged on (default "
                                f"{DEFAULTS.evaluation_frames})")

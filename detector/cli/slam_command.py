@@ -104,7 +104,7 @@ def _slam(args: argparse.Namespace) -> int:
     import numpy as np
 
     from detector.model_files import load_calibration
-    from detector.datasets.io import output_folder
+    from detector.outputs import output_folder
     from detector.slam.comparison import BACKENDS, compare_backends, print_comparison
     from detector.slam.outputs import write_outputs
     from detector.slam.reference import smooth
@@ -122,7 +122,7 @@ def _slam(args: argparse.Namespace) -> int:
     map_file = Path(args.map) if args.map and args.map != "true" else None
     inputs = (args.utias, args.frames, args.odometry, args.calibration, Path(frontend) if frontend else None, map_file)
     start_std = (args.start_std[0], args.start_std[0], args.start_std[1])
-    with output_folder(args.out, args.force, existing(*inputs)) as out:
+    with output_folder(args.out, args.force, existing(*inputs), "slam run") as out:
         sequence = make(args.seed)
         if args.start is not None:
             sequence = replace(sequence, start=np.array(args.start))

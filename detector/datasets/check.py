@@ -1,5 +1,6 @@
 """``poles check``: validate a dataset, summarise it, and write a cleaned copy on request."""
 from __future__ import annotations
+from detector.outputs import fresh_path
 
 import re
 from collections import Counter
@@ -129,6 +130,7 @@ def print_report(report: CheckReport, console: Console | None = None, show_notes
     console.print(f"{counts['error']} error(s), {counts['warning']} warning(s), {counts['note']} note(s)"
                   + (f" ({notes} notes hidden: --notes shows them)" if notes else ""))
     if left_out and full_list is not None:
+        full_list = fresh_path(full_list)  # a check reads: it never replaces a file
         write_text(full_list, "".join(f"{p}\n" for p in report.problems))
         console.print(f"every problem, one per line: {full_list}")
         return full_list
@@ -160,7 +162,8 @@ def _split_table(report: CheckReport) -> Table:
 
 def listing_path(dataset: Dataset, fixed_copy: Path | None = None) -> Path:
     """Where the whole list of problems goes: ``CLEAN.check.txt`` beside a ``--fix`` copy, else
-    ``check-<dataset>.txt`` in the working folder, or beside the dataset when run from inside it (never into it)."""
+    ``check-<dataset>.txt`` in the working folder, or beside the dataset when run from inside it (never into it);
+    numbered (``check-<dataset>-2.txt``) where a file of that name is there already."""
     if fixed_copy is not None:
         return Path(f"{fixed_copy}.check.txt")
     root, here = Path(dataset.root).resolve(), Path.cwd().resolve()

@@ -7,7 +7,6 @@ import os
 import shutil
 from collections import Counter
 from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from types import TracebackType
 
@@ -20,8 +19,11 @@ from detector.datasets.labels import format_label_line, parse_label_file, unread
 from detector.datasets.model import IMAGE_SUFFIXES, SPLITS, Dataset, DatasetError, Instance, Problem, Sample
 from detector.datasets.names import class_codes, unknown_class_problems
 from detector.atomic import atomic_folder
+from detector.outputs import check_output_folder, mark_output
 from naoslam.landmarks import CLASSES
 
+#: The kind of output a dataset folder is (``detector.outputs``).
+DATASET = "dataset"
 #: data.yaml key -> split folder name.
 YAML_SPLIT_KEYS = {"train": "train", "val": "valid", "test": "test"}
 
@@ -249,73 +251,6 @@ def _duplicate_stems(samples: list[Sample]) -> list[Problem]:
     return problems
 
 
-#: The file every output folder holds: ``--force`` replaces a folder only when it holds one (an earlier output of
-#: this tool), never a folder of the user's own.
-OUTPUT_MARKER = ".poles-output"
-
-
-def check_output_folder(out: str | Path, force: bool, protect: tuple[Path, ...]) -> Path:
-    """The resolved output folder, or an error: it is a file, overlaps an input folder (never allowed, even with
-    ``force``), or holds files and ``force`` is not set or it is not an earlier output (no ``OUTPUT_MARKER``)."""
-    out = Path(out).resolve()
-    if out.exists() and not out.is_dir():
-        raise FileExistsError(f"--out {out} is a file: give a folder for the dataset")
-    _refuse_under_a_file(out)
-    _refuse_overlap(out, protect)
-    if out.exists() and any(out.iterdir()):
-        if not force:
-            raise FileExistsError(f"{out} exists and is not empty: choose another --out or pass --force to replace it")
-        if not (out / OUTPUT_MARKER).is_file():
-            raise FileExistsError(f"{out} holds files that poles did not write (no {OUTPUT_MARKER} in it), so "
-                                  "--force does not replace it: choose another --out, or move that folder away "
-                                  "yourself")
-    return out
-
-
-def _mark_output(folder: Path) -> None:
-    """Mark ``folder`` as an output of this tool, which a later ``--force`` may replace."""
-    (folder / OUTPUT_MARKER).write_text("written by poles; --force may replace this folder\n", encoding="utf-8")
-
-
-def check_output_file(out: str | Path, force: bool, protect: tuple[Path, ...]) -> Path:
-    """The resolved output file, or an error: it is a folder, is an input file or lies in an input folder (never
-    allowed, even with ``force``), or exists and ``force`` is not set."""
-    out = Path(out).resolve()
-    if out.is_dir():
-        raise IsADirectoryError(f"{out} is a folder: give a file name")
-    _refuse_under_a_file(out)
-    _refuse_overlap(out, protect)
-    if out.exists() and not force:
-        raise FileExistsError(f"{out} exists - pick another name or add --force to replace it")
-    return out
-
-
-def _refuse_under_a_file(out: Path) -> None:
-    """Refuse an output whose nearest existing parent is a file: nothing can be made under it."""
-    parent = next((folder for folder in out.parents if folder.exists()), None)
-    if parent is not None and not parent.is_dir():
-        raise NotADirectoryError(f"--out {out}: {parent} is a file, so nothing can be written under it - choose a "
-                                 "path inside a folder")
-
-
-def _refuse_overlap(out: Path, protect: tuple[Path, ...]) -> None:
-    """Refuse an output that is, holds or lies inside one of the inputs in ``protect`` (files or folders)."""
-    for guarded in protect:
-        guarded = Path(guarded).resolve()
-        if out == guarded or guarded in out.parents or out in guarded.parents:
-            raise ValueError(f"output {out} overlaps the input {guarded}: choose another path "
-                             "(inputs are never written)")
-
-
-@contextmanager
-def output_folder(out: str | Path, force: bool, protect: tuple[Path, ...]) -> Iterator[Path]:
-    """A temporary folder for a command's output, moved to ``out`` when the block succeeds, so ``out`` holds one
-    run's files and never half of one; ``out`` is checked first by ``check_output_folder``."""
-    with atomic_folder(check_output_folder(out, force, protect)) as tmp:
-        _mark_output(tmp)
-        yield tmp
-
-
 class DatasetWriter:
     """Write a dataset in the Roboflow layout into a temporary sibling folder, then move it into place.
 
@@ -324,14 +259,13 @@ class DatasetWriter:
     """
 
     def __init__(self, out: str | Path, *, force: bool = False, protect: tuple[Path, ...] = ()):
-        self.out = check_output_folder(out, force, protect)
+        self.out = check_output_folder(out, force, protect, DATASET)
         self.force = force
         self.counts = {split: 0 for split in SPLITS}
 
     def __enter__(self) -> "DatasetWriter":
         self._folder = atomic_folder(self.out)
         self.tmp = self._folder.__enter__()
-        _mark_output(self.tmp)
         for split in SPLITS:
             (self.tmp / split / "images").mkdir(parents=True)
             (self.tmp / split / "labels").mkdir(parents=True)
@@ -371,6 +305,7 @@ class DatasetWriter:
     def __exit__(self, exc_type: type | None, exc: BaseException | None, tb: TracebackType | None) -> None:
         if exc_type is None:
             self.write_text("data.yaml", data_yaml_text())
+            mark_output(self.tmp, DATASET)
         self._folder.__exit__(exc_type, exc, tb)
 
 

@@ -30,7 +30,9 @@ def parse_label_file(path: Path, names: tuple[str | None, ...],
     try:
         text = path.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
-        return [], [Problem("error", path, None, f"cannot read label file ({exc})", "replace it with a text file")]
+        fix = (f"let your user read it (chmod u+r {path})" if isinstance(exc, PermissionError)
+               else "replace it with a UTF-8 text file")
+        return [], [Problem("error", path, None, f"cannot read label file ({exc})", fix)]
     for number, raw in enumerate(text.splitlines(), start=1):
         if not raw.strip():
             continue

@@ -41,6 +41,10 @@ class DatasetError(Exception):
                          "Run `poles check DATA` for the full report, or `poles check DATA --fix --out CLEAN`.")
 
 
+#: What a command raises for input it cannot use: one line for the user, never a traceback.
+BAD_INPUT_ERRORS = (DatasetError, ValueError, OSError)
+
+
 @dataclass
 class Instance:
     """One annotated landmark: canonical class code and polygon (N, 2) in normalised image coordinates."""

@@ -10,6 +10,7 @@ import numpy as np
 from detector.datasets.intake import open_dataset
 from detector.datasets.io import DatasetWriter
 from detector.datasets.model import Sample
+from detector.datasets.truth import read_annotations
 
 #: The order of ``--ratios``: train, test, valid (as the thesis lists them).
 RATIO_ORDER = ("train", "test", "valid")
@@ -50,13 +51,23 @@ def stratified_assignment(samples: list[Sample], ratios: dict[str, float], seed:
 
 def split_dataset(data: str | Path, out: str | Path, ratios: tuple[float, float, float] = (0.7, 0.2, 0.1),
                   seed: int = 0, force: bool = False) -> dict[str, int]:
-    """Write a copy of every image of ``data`` into new splits; returns images per split."""
-    if len(ratios) != 3 or not all(math.isfinite(r) and r >= 0 for r in ratios) or sum(ratios) <= 0:
+    """Write a copy of every image of ``data`` into new splits; returns images per split. An ``annotations.json`` of
+    ``poles synth`` (true ranges, camera poses) goes along, each image's entry naming its new split."""
+    if len(ratios) != 3 or not all(math.isfinite(r) and r >= 0 for r in ratios):
         raise ValueError(f"--ratios needs three non-negative numbers (train test valid), got {list(ratios)}")
+    if sum(ratios) <= 0:
+        raise ValueError(f"--ratios {' '.join(f'{r:g}' for r in ratios)} puts every image nowhere: give at least one "
+                         "split a share above 0, e.g. --ratios 0.7 0.2 0.1")
     dataset = open_dataset(data)
     samples = [s for s in dataset.samples if s.image is not None]
     assignment = stratified_assignment(samples, dict(zip(RATIO_ORDER, ratios)), seed)
+    annotations = read_annotations(dataset.root / "annotations.json")
     with DatasetWriter(out, force=force, protect=dataset.input_folders()) as writer:
         for sample, split in zip(samples, assignment):
             writer.copy_sample(Sample(split, sample.image, sample.label, sample.instances))
+            entry = (annotations or {}).get("images", {}).get(sample.image.name)
+            if isinstance(entry, dict):
+                entry["split"] = split
+        if annotations is not None:
+            writer.write_json("annotations.json", annotations)
     return dict(writer.counts)

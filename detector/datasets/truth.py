@@ -13,6 +13,8 @@ from pathlib import Path
 from detector.datasets.io import csv_rows
 from detector.datasets.model import Dataset, DatasetError, Problem
 from detector.datasets.names import canonical_class
+from naoslam.camera import CameraPose
+from naoslam.ground import ground_plane_problem
 
 #: Ground truth of one image: one dict per label line (None where nothing is known about that instance).
 ImageTruth = list[dict | None]
@@ -29,10 +31,12 @@ def load_truth(dataset: Dataset, csv_path: Path | None = None) -> dict[str, Imag
     if images is None:
         print(f"note: {path} is not an annotations.json of `poles synth` (no images -> landmarks mapping); ignored")
         return {}
-    truth = {}
+    truth, odd = {}, []
     for sample in dataset.samples:
         entry = images.get(sample.image.name)
         if not isinstance(entry, dict):
+            if entry is not None:
+                odd.append(sample.image.name)
             continue
         landmarks = [lm for lm in entry.get("landmarks", []) if isinstance(lm, dict)]
         if [lm.get("cls") for lm in landmarks] != [inst.cls for inst in sample.instances]:
@@ -48,6 +52,9 @@ def load_truth(dataset: Dataset, csv_path: Path | None = None) -> dict[str, Imag
                                             "leave range_m out")])
         truth[sample.image.name] = [dict(lm, image_width=entry.get("width"), camera=entry.get("camera"))
                                     for lm in landmarks]
+    if odd:
+        print(f"note: {path}: the entries of {len(odd)} image(s) ({', '.join(odd[:3])}) are not `poles synth`'s "
+              "(an object with `landmarks`); their truth is ignored")
     return truth
 
 
@@ -58,14 +65,37 @@ def _is_distance(value) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and value > 0
 
 
-def _our_annotations(path: Path) -> dict | None:
-    """The ``images`` mapping of an annotations.json in this project's schema, or None for any other file."""
+def load_camera_poses(dataset: Dataset) -> dict[str, CameraPose]:
+    """The camera's pose (height, pitch, roll) of each image whose ``annotations.json`` entry records one (``poles
+    synth`` writes them), by file name; empty without such a file."""
+    images = _our_annotations(dataset.root / "annotations.json") or {}
+    poses = {}
+    for name, entry in images.items():
+        camera = entry.get("camera") if isinstance(entry, dict) else None
+        try:
+            pose = CameraPose(z=float(camera["height_m"]), pitch=float(camera["pitch_rad"]),
+                              roll=float(camera["roll_rad"]))
+        except (TypeError, KeyError, ValueError):
+            continue
+        if ground_plane_problem(pose) is None:
+            poses[name] = pose
+    return poses
+
+
+def read_annotations(path: Path) -> dict | None:
+    """An annotations.json in this project's schema (an object with an ``images`` mapping), or None for a missing
+    or any other file."""
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError):
         return None
-    images = data.get("images") if isinstance(data, dict) else None
-    return images if isinstance(images, dict) else None
+    return data if isinstance(data, dict) and isinstance(data.get("images"), dict) else None
+
+
+def _our_annotations(path: Path) -> dict | None:
+    """The ``images`` mapping of an annotations.json in this project's schema, or None for any other file."""
+    data = read_annotations(path)
+    return data["images"] if data is not None else None
 
 
 def _from_csv(dataset: Dataset, path: Path) -> dict[str, ImageTruth]:

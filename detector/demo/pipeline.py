@@ -229,7 +229,7 @@ def _evaluate(folder: Path, models: list[Path], data: Path, calibration_json: Pa
     first model's F1 less the shipped model's on the same test frames, with its 95 % interval over frames: what the
     training bought."""
     from detector.model_files import load_calibration
-    from detector.datasets.io import output_folder
+    from detector.outputs import stage_folder
     from detector.evaluation.paired import f1_difference
     from detector.evaluation.predictors import make_predictor
     from detector.evaluation.run import evaluate
@@ -238,7 +238,7 @@ def _evaluate(folder: Path, models: list[Path], data: Path, calibration_json: Pa
 
     calibration = load_calibration(calibration_json)
     conf, conf_source = budget.conf, "the thesis's"
-    with output_folder(folder, force=True, protect=(data,)) as tmp:
+    with stage_folder(folder, (data,), "evaluation") as tmp:
         if conf is None:  # chosen on the validation split, never on the test frames
             validation = evaluate(make_predictor(str(models[0])), data, tmp / "validation", "valid", 0.5)
             conf, conf_source = operating_threshold(validation, starting_conf)
@@ -272,7 +272,7 @@ def operating_threshold(validation: dict, starting_conf: float | None) -> tuple[
 
 def _slam(folder: Path, model: Path, calibration_json: Path, budget: Budget, conf: float, seed: int) -> dict:
     from detector.model_files import load_calibration
-    from detector.datasets.io import output_folder
+    from detector.outputs import stage_folder
     from detector.slam.comparison import BACKENDS, compare_backends
     from detector.slam.outputs import write_outputs
     from detector.slam.sequences import FrontEnd, image_sequences, sim_sequence
@@ -288,7 +288,7 @@ def _slam(folder: Path, model: Path, calibration_json: Path, budget: Budget, con
     tables = {}
     front_ends = {"model": FrontEnd(str(model), calibration, conf),
                   "colour filter": FrontEnd("colour-filter", calibration, conf)}
-    with output_folder(folder, force=True, protect=()) as tmp:
+    with stage_folder(folder, (), "slam run") as tmp:
         for name, sequence in zip(front_ends, image_sequences(sim, list(front_ends.values()))):
             subfolder = name.replace(" ", "-")
             metrics = write_outputs(run_slam(sequence, chosen), sequence, tmp / subfolder)

@@ -1,8 +1,10 @@
 """Counting as the 2024 thesis did, per image: TP, FP, FN, and TN (no landmark and no detection).
 
 A detection is a true positive when its class matches a label's and their masks overlap with IoU >= 0.5
-(greedy by confidence, one detection per label). A colour-filter detection has no real mask: it is a true
-positive when its band-dividing point falls inside a same-class label (grown by 3 px).
+(greedy by confidence, one detection per label). A box-only front end (the robot's two-stage one) has no mask: its
+box is matched to the label's box by IoU >= 0.5, and a model with masks can be scored that way too, to compare the
+two. A colour-filter detection has no real mask: it is a true positive when its band-dividing point falls inside a
+same-class label (grown by 3 px).
 """
 from __future__ import annotations
 
@@ -11,10 +13,12 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
-from detector.matching import greedy_match, mask_iou
+from detector.matching import box_iou, greedy_match, mask_box, mask_iou
 from naoslam.detections import Detection, rotated_box_of_mask
 
 MATCH_IOU = 0.5
+#: How a detection is matched to a label: by mask IoU, by box IoU, or by the band-dividing point (the colour filter).
+MATCHINGS = ("mask", "box", "point")
 #: IoU thresholds of the COCO-style mAP50-95.
 MAP_THRESHOLDS = np.linspace(0.5, 0.95, 10)
 POINT_TOLERANCE_PX = 3
@@ -38,7 +42,7 @@ class ImageEvaluation:
     scores: np.ndarray
     overlap: np.ndarray
     same_class: np.ndarray
-    point_matching: bool
+    matching: str
 
     @property
     def classes(self) -> list[str]:
@@ -62,22 +66,27 @@ class ImageEvaluation:
 
 
 def evaluate_image(name: str, truth_classes: list[str], truth_masks: list[np.ndarray], truth: list[dict | None],
-                   detections: list[Detection], frame_shape: tuple[int, ...], point_matching: bool) -> ImageEvaluation:
-    """Overlap between every detection and label: mask IoU, or with ``point_matching`` (the colour filter, whose
-    band mask is not the pole's outline) whether its band-dividing point lies in the label."""
+                   detections: list[Detection], frame_shape: tuple[int, ...], matching: str = "mask") -> ImageEvaluation:
+    """Overlap between every detection and label (``matching``, one of ``MATCHINGS``): mask IoU, box IoU (the box
+    around each label's mask), or whether the band-dividing point lies in the label (the colour filter, whose band
+    mask is not the pole's outline)."""
+    if matching not in MATCHINGS:
+        raise ValueError(f"matching {matching!r} is not one of {', '.join(MATCHINGS)}")
     same_class = np.array([[d.name == t for t in truth_classes] for d in detections], dtype=bool)
     same_class = same_class.reshape(len(detections), len(truth_classes))
-    if point_matching:
+    if matching == "point":
         kernel = np.ones((2 * POINT_TOLERANCE_PX + 1,) * 2, np.uint8)
         grown = [cv2.dilate(m.astype(np.uint8), kernel) > 0 for m in truth_masks]
         overlap = np.array([[_inside(d.divide_centre, g) for g in grown] for d in detections], dtype=float)
+    elif matching == "box":
+        overlap = box_iou([d.box for d in detections], [mask_box(m) for m in truth_masks])
     else:
         overlap = mask_iou([d.full_mask(frame_shape) for d in detections], truth_masks)
     overlap = overlap.reshape(len(detections), len(truth_masks))
     return ImageEvaluation(name, truth_classes, [label_width_px(m) for m in truth_masks], truth,
                            [replace(d, mask=np.zeros((0, 0), bool)) for d in detections],
                            np.array([d.confidence for d in detections], dtype=float), overlap, same_class,
-                           point_matching)
+                           matching)
 
 
 def label_width_px(mask: np.ndarray) -> float:
@@ -179,8 +188,8 @@ def best_threshold(sweep: list[dict]) -> float | None:
 
 
 def map_scores(images: list[ImageEvaluation], classes: tuple[str, ...]) -> dict[str, float] | None:
-    """Ultralytics' mAP50 and mAP50-95 over mask IoU (None for the colour filter, which has no masks)."""
-    if not images or images[0].point_matching:
+    """Ultralytics' mAP50 and mAP50-95 over the images' IoU, mask or box (None for the colour filter's points)."""
+    if not images or images[0].matching == "point":
         return None
     from ultralytics.utils.metrics import ap_per_class
 

@@ -7,9 +7,12 @@ from pathlib import Path
 import numpy as np
 
 from detector.model_files import read_checkpoint, run_checkpoint
+from naoslam.camera import CameraPose
 from naoslam.colour_filter import ColourFilter
 from naoslam.detections import Detection
-from naoslam.detector import LandmarkDetector, shipped_calibration
+from naoslam.crop_detector import CropDetector
+from naoslam.detector import load_detector, shipped_calibration
+from naoslam.front_end import COLOUR_FILTER
 from naoslam.measurement import RangeCalibration
 from naoslam.shipped import resolve_model
 
@@ -24,28 +27,32 @@ class Predictor:
     calibration: RangeCalibration | None = None
     #: The confidence threshold the front end is meant to run at (stored in the model), if it has one.
     operating_conf: float | None = None
-    #: Whether a detection is matched to a label by its band-dividing point (the colour filter) or by its mask.
-    point_matching: bool = False
+    #: How a detection is matched to a label (``counting.MATCHINGS``): by its mask, its box (a box-only front end,
+    #: or any front end scored as one) or its band-dividing point (the colour filter).
+    matching: str = "mask"
 
-    def __call__(self, frame: np.ndarray) -> list[Detection]:
+    def __call__(self, frame: np.ndarray, camera_pose: CameraPose | None = None) -> list[Detection]:
+        """The detections in one frame; a front end that uses the camera's pose (the ONNX ones) gets it."""
         raise NotImplementedError
 
 
 class OnnxPredictor(Predictor):
-    """An exported model run by the naoslam front end (FP32 or INT8), at ``input_width`` if given.
+    """An exported model run by the naoslam front end (FP32 or INT8, at ``input_width`` if given; or the robot's
+    two-stage model, whose boxes are matched by box IoU).
 
     Ranges come from ``calibration``, else from the model's own one where it was measured at this input width.
     """
 
     def __init__(self, path: Path, input_width: int | None = None, calibration: RangeCalibration | None = None):
-        self.detector = LandmarkDetector(path, conf=SWEEP_CONF, input_width=input_width)
+        self.detector = load_detector(path, conf=SWEEP_CONF, input_width=input_width)
         self.name = Path(path).name
+        self.matching = "box" if isinstance(self.detector, CropDetector) else "mask"
         self.calibration = (self.detector.check_calibration(calibration) if calibration is not None
                             else self.detector.usable_calibration)
         self.operating_conf = self.detector.stored_conf
 
-    def __call__(self, frame: np.ndarray) -> list[Detection]:
-        return self.detector(frame)
+    def __call__(self, frame: np.ndarray, camera_pose: CameraPose | None = None) -> list[Detection]:
+        return self.detector(frame, camera_pose)
 
 
 class TorchPredictor(Predictor):
@@ -61,7 +68,7 @@ class TorchPredictor(Predictor):
         self.imgsz = imgsz
         self.name = Path(path).name
 
-    def __call__(self, frame: np.ndarray) -> list[Detection]:
+    def __call__(self, frame: np.ndarray, camera_pose: CameraPose | None = None) -> list[Detection]:
         from detector.model_files import ultralytics_frame
 
         return ultralytics_frame(self.model, frame, self.imgsz, SWEEP_CONF)
@@ -71,14 +78,14 @@ class ColourFilterPredictor(Predictor):
     """The thesis's colour filter; every detection has confidence 1 and is located by its band-dividing point.
     Ranges come from ``calibration``'s colour law, else from the shipped model's (the colour filter's on the Nao)."""
 
-    name = "colour-filter"
-    point_matching = True
+    name = COLOUR_FILTER
+    matching = "point"
 
     def __init__(self, calibration: RangeCalibration | None = None):
         self.filter = ColourFilter()
         self.calibration = calibration if calibration is not None else shipped_calibration()
 
-    def __call__(self, frame: np.ndarray) -> list[Detection]:
+    def __call__(self, frame: np.ndarray, camera_pose: CameraPose | None = None) -> list[Detection]:
         return self.filter(frame)
 
 
@@ -88,7 +95,7 @@ def make_predictor(model: str, imgsz: int | None = None, calibration: RangeCalib
 
     ``imgsz``: the network's input width (default: 640 for a checkpoint, an ONNX model's own).
     """
-    if model == "colour-filter":
+    if model == COLOUR_FILTER:
         return ColourFilterPredictor(calibration)
     path = run_checkpoint(resolve_model(model))
     if path.suffix == ".onnx":

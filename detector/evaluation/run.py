@@ -11,7 +11,7 @@ from detector.console import show_progress
 from detector.datasets.intake import open_dataset
 from detector.datasets.model import SPLITS
 from detector.datasets.polygons import polygon_to_mask
-from detector.datasets.truth import load_truth
+from detector.datasets.truth import load_camera_poses, load_truth
 from detector.evaluation.by_width import recall_by_width, width_bin_names
 from detector.evaluation.counting import (ImageEvaluation, best_threshold, confidence_sweep, confusion_matrix,
                                           evaluate_image, map_scores, outcome, precision_recall, totals)
@@ -26,8 +26,9 @@ from naoslam.measurement import RangeCalibration, bearing_of_column
 
 
 def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", conf: float = 0.5,
-             progress: bool = True) -> dict:
-    """Evaluate ``predictor`` on ``split`` of ``data``; writes ``out``/metrics.json, plots and overlays."""
+             progress: bool = True, use_pose: bool = False) -> dict:
+    """Evaluate ``predictor`` on ``split`` of ``data``; writes ``out``/metrics.json, plots and overlays.
+    ``use_pose``: give the front end each frame's camera pose where annotations.json records it, as on the robot."""
     dataset = open_dataset(data, progress=progress)
     samples = dataset.split(split)
     if not samples:
@@ -36,24 +37,20 @@ def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", c
     truth = load_truth(dataset)
     out = Path(out)
     overlays = out / "errors"
-    images, written = [], 0
-    for sample in show_progress(samples, f"evaluating {predictor.name}", "img", enabled=progress):
-        # Frames stream through: only each image's compact counts stay, and its overlay is written while its masks
-        # are in hand, so memory does not grow with the number or size of the frames.
-        frame = cv2.imread(str(sample.image))
-        h, w = frame.shape[:2]
-        masks = [polygon_to_mask(inst.pixels(w, h), w, h) for inst in sample.instances]
-        entries = truth.get(sample.image.name) or [None] * len(sample.instances)
-        detections = predictor(frame)
-        image = evaluate_image(sample.image.name, [i.cls for i in sample.instances], masks, entries, detections,
-                               frame.shape, predictor.point_matching)
+    written = 0
+
+    def write_errors(image: ImageEvaluation, frame: np.ndarray, detections: list[Detection], masks: list) -> None:
+        nonlocal written
         written += write_overlay(image, frame, detections, masks, conf, overlays)
-        images.append(image)
+
+    poses = load_camera_poses(dataset) if use_pose else {}
+    images = evaluate_frames(predictor, samples, truth, f"evaluating {predictor.name}", progress, write_errors, poses)
     counts = totals(images, conf)
     precision, recall, f1 = precision_recall(counts)
     sweep = confidence_sweep(images)
     best = max(sweep, key=lambda row: row["f1"])
     metrics = {"model": predictor.name, "data": str(data), "split": split, "conf": conf, "images": len(images),
+               "matching": predictor.matching, "camera_poses": len(poses),
                "precision": precision, "recall": recall, "f1": f1, **counts,
                "mean_iou": _mean_tp_iou(images, conf), "best_f1_conf": best["conf"], "best_f1": best["f1"],
                "sweep": sweep, "per_image": [{"image": i.name, **i.counts(conf)} for i in images]}
@@ -76,9 +73,29 @@ def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", c
     return metrics
 
 
+def evaluate_frames(predictor: Predictor, samples: list, truth: dict, label: str = "evaluating",
+                    progress: bool = True, each_frame=None, poses: dict | None = None) -> list[ImageEvaluation]:
+    """Each sample's counts against its labels, the front end given the frame's camera pose where ``poses`` has it.
+    Frames stream through: only each image's compact counts stay (and ``each_frame(image, frame, detections,
+    label_masks)`` sees the frame while its masks are in hand), so memory does not grow with the frames."""
+    images = []
+    for sample in show_progress(samples, label, "img", enabled=progress):
+        frame = cv2.imread(str(sample.image))
+        h, w = frame.shape[:2]
+        masks = [polygon_to_mask(inst.pixels(w, h), w, h) for inst in sample.instances]
+        entries = truth.get(sample.image.name) or [None] * len(sample.instances)
+        detections = predictor(frame, (poses or {}).get(sample.image.name))
+        image = evaluate_image(sample.image.name, [i.cls for i in sample.instances], masks, entries, detections,
+                               frame.shape, predictor.matching)
+        if each_frame is not None:
+            each_frame(image, frame, detections, masks)
+        images.append(image)
+    return images
+
+
 def _mean_tp_iou(images: list[ImageEvaluation], conf: float) -> float | None:
-    """Mean mask IoU of true positives (None for the colour filter, which has no masks)."""
-    if images and images[0].point_matching:
+    """Mean IoU (mask or box) of true positives (None for the colour filter, which has no masks)."""
+    if images and images[0].matching == "point":
         return None
     ious = [image.overlap[p, r] for image in images for p, r in image.match(conf)]
     return float(np.mean(ious)) if ious else 0.0
@@ -145,7 +162,7 @@ def _width_recall(m: dict, index: int) -> str:
 
 def _localisation(m: dict) -> str:
     if m.get("mean_iou") is not None:
-        return f"IoU {m['mean_iou']:.4f}"
+        return f"{m.get('matching', 'mask')} IoU {m['mean_iou']:.4f}"
     return f"{m['divide_pixel_error']['mean']:.2f} px" if "divide_pixel_error" in m else "-"
 
 
@@ -154,6 +171,8 @@ _WIDTH_ROWS = {f"  poles {name} wide": (lambda m, i=i: _width_recall(m, i)) for 
 #: Rows of the comparison table: label and how to show it from metrics.json.
 TABLE_ROWS = {
     "images": lambda m: str(m["images"]),
+    "matched to labels by": lambda m: {"point": "band-dividing point"}.get(m.get("matching", "mask"),
+                                                                          f"{m.get('matching', 'mask')} IoU >= 0.5"),
     "threshold (the counts')": lambda m: "any" if m["model"] == ColourFilterPredictor.name else f"{m['conf']:.2f}",
     "TP / FP / FN / TN": lambda m: f"{m['tp']} / {m['fp']} / {m['fn']} / {m['tn']}",
     "FP: class swaps / duplicates": lambda m: f"{m['class_swaps']} / {m['duplicates']}",
@@ -183,7 +202,7 @@ def print_metrics(rows: list[dict]) -> None:
 
     split = rows[0]["split"] if rows else "test"
     title = ("held-out frames" if split != "train" else "TRAINING frames (not held out: a model scores higher on "
-             "frames it learnt)") + f" of the {split} split: TP = same class and mask IoU >= 0.5"
+             "frames it learnt)") + f" of the {split} split: TP = same class and overlap as each column says"
     table = Table(title=title)
     table.add_column("")
     for m in rows:

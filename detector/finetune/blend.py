@@ -4,14 +4,14 @@ middle, which keeps most of what the shipped model knew) ships unless the valid 
 better frame by frame: a one-sided sign test over the frames where the two differ (docs/finetune.md)."""
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 from scipy.stats import binomtest
 
-from detector.evaluation.predictors import TorchPredictor
+from detector.evaluation.predictors import Predictor
 from detector.evaluation.run import evaluate
 from detector.finetune.recipe import BLEND_SHARES, DEFAULT_BLEND_SHARE, SIGN_TEST_LEVEL
-from detector.training.soup import blend_checkpoints
 
 
 def blend_path(folder: Path, share: float) -> Path:
@@ -49,13 +49,15 @@ def pick_share(scores: list[dict]) -> float:
     return best["share"]
 
 
-def choose_blend(shipped: Path, finetuned: Path, data: Path, folder: Path, conf: float, imgsz: int) -> dict:
-    """Write and score every blend on ``data``'s valid split at ``conf``; returns each share's figures and the
-    chosen share (its checkpoint at ``blend_path(folder, share)``)."""
+def choose_blend(shipped: Path, finetuned: Path, data: Path, folder: Path, conf: float,
+                 predictor_of: Callable[[Path], Predictor], blend: Callable[[Path, Path, float, Path], Path]) -> dict:
+    """Write (``blend(shipped, finetuned, share, out)``) and score (``predictor_of(checkpoint)``) every blend on
+    ``data``'s valid split at ``conf``; returns each share's figures and the chosen share (its checkpoint at
+    ``blend_path(folder, share)``)."""
     scores = []
     for share in BLEND_SHARES:
-        weights = blend_checkpoints(shipped, finetuned, share, blend_path(folder, share), force=True)
-        metrics = evaluate(TorchPredictor(weights, imgsz), data, folder / f"valid-{round(100 * share):03d}", "valid",
+        weights = blend(shipped, finetuned, share, blend_path(folder, share))
+        metrics = evaluate(predictor_of(weights), data, folder / f"valid-{round(100 * share):03d}", "valid",
                            conf, progress=False)
         scores.append({"share": share, "f1": metrics["f1"], "precision": metrics["precision"],
                        "recall": metrics["recall"], "tp": metrics["tp"], "fp": metrics["fp"], "fn": metrics["fn"],

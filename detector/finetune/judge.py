@@ -3,12 +3,13 @@ fresh rendered sets), counted as ``poles evaluate`` counts, each newcomer's F1 a
 95 % interval over frames, and the recall of poles under 16 px wide (the first thing a small export forgets)."""
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
 
 from detector.atomic import write_json
 from detector.evaluation.paired import f1_difference
-from detector.evaluation.predictors import TorchPredictor
+from detector.evaluation.predictors import Predictor
 from detector.evaluation.run import evaluate
 from detector.synth.generate import SynthJob, generate_dataset
 from detector.synth.scene import SceneConfig
@@ -33,15 +34,16 @@ def render_set(folder: Path, frames: int, far_share: float, seed: int, backgroun
 
 
 def compare_models(models: dict[str, Path], sets: dict[str, tuple[Path, str]], folder: Path, conf: float,
-                   imgsz: int) -> list[dict]:
-    """Every model (checkpoints by name, ``REFERENCE`` among them) on every set (dataset, split) at ``conf``; one row
-    per set and model, written to ``folder``/summary.json with each model's evaluation folder."""
+                   predictor_of: Callable[[Path], Predictor]) -> list[dict]:
+    """Every model (checkpoints by name, ``REFERENCE`` among them, each run by ``predictor_of``) on every set
+    (dataset, split) at ``conf``; one row per set and model, written to ``folder``/summary.json with each model's
+    evaluation folder."""
     rows = []
     for set_name, (dataset, split) in sets.items():
         per_image, set_rows = {}, []
         for model_name, weights in models.items():
             out = Path(folder) / set_name.replace(" ", "-") / model_name.replace(" ", "-")
-            metrics = evaluate(TorchPredictor(weights, imgsz), dataset, out, split, conf)
+            metrics = evaluate(predictor_of(weights), dataset, out, split, conf)
             per_image[model_name] = metrics["per_image"]
             small = [b for b in metrics["recall_by_width"] if b["width"] in SMALL_BINS]
             labels, found = sum(b["labels"] for b in small), sum(b["found"] for b in small)

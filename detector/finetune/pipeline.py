@@ -15,7 +15,10 @@ from detector.atomic import write_json
 from detector.console import make_console
 from detector.finetune.judge import REFERENCE, RENDERED_SETS, compare_models, render_set
 from detector.finetune.recipe import DEFAULT_BLEND_SHARE, SIGN_TEST_LEVEL, FinetuneRecipe
-from detector.stages import StageLedger, file_fingerprint, stage_key
+from detector.datasets.model import BAD_INPUT_ERRORS
+from detector.errors import keep_on_interrupt
+from detector.outputs import check_placement
+from detector.stages import StageFailed, StageLedger, file_fingerprint, stage_key
 from detector.synth.backdrops import scan_backdrops
 from naoslam.shipped import OPERATING_CONF_KEY
 
@@ -27,12 +30,20 @@ def run_finetune(export: Path, out: Path, recipe: FinetuneRecipe, renames: dict[
     export, out = Path(export), Path(out)
     _check_run_folder(out, export)
     backdrops = scan_backdrops(Path(recipe.backgrounds)) if recipe.backgrounds else ()
+    new_folder = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     ledger = StageLedger(out, announce=lambda text: console.rule(f"[bold]{text}", align="left"))
+    keep_on_interrupt(f"the finished stages and the training's last epoch are kept in {out}: run the same command "
+                      "again to resume where it stopped, within what is left of --minutes")
     console.print(f"[bold]poles finetune[/bold] {export} into {out}: the shipped {recipe.model} model, "
                   f"{recipe.minutes:g} minutes in all")
     start = time.perf_counter()
-    results = _stages(ledger, export, out, recipe, renames or {}, backdrops)
+    try:
+        results = _stages(ledger, export, out, recipe, renames or {}, backdrops)
+    except StageFailed:
+        if new_folder and not any(record.status == "done" for record in ledger.records.values()):
+            shutil.rmtree(out, ignore_errors=True)  # refused before anything was made: leave nothing behind
+        raise
     results["seconds"] = {record.name: round(record.seconds, 1) for record in ledger.timings()}
     results["wall_seconds_this_call"] = round(time.perf_counter() - start, 1)
     from detector.finetune.report import write_report
@@ -44,11 +55,15 @@ def run_finetune(export: Path, out: Path, recipe: FinetuneRecipe, renames: dict[
 
 
 def _check_run_folder(out: Path, export: Path) -> None:
-    """Refuse an ``out`` that overlaps the export, or is not a new, empty or earlier fine-tune's folder."""
-    resolved, source = out.resolve(), export.resolve()
-    if resolved == source or source in resolved.parents or resolved in source.parents:
-        raise ValueError(f"--out {out} overlaps the export {export}: the export is only read - give a folder "
-                         "outside it")
+    """Refuse an ``out`` that overlaps the export (any folder it is read from) or lies inside a dataset, or is not a
+    new, empty or earlier fine-tune's folder."""
+    from detector.datasets.intake import open_dataset
+
+    try:
+        inputs = open_dataset(export, progress=False).input_folders()
+    except BAD_INPUT_ERRORS:  # the export stage says what is wrong with it
+        inputs = (export,)
+    check_placement(out, (export, *inputs))
     StageLedger.check_folder(out, "fine-tune")
 
 
@@ -85,19 +100,19 @@ def _stages(ledger: StageLedger, export: Path, out: Path, recipe: FinetuneRecipe
     train_key = stage_key(mix=mix_key, recipe=training, start=file_fingerprint(recipe.start.weights))
     spent = sum(record.seconds for record in ledger.timings()) / 60
     run = out / "train"
-    results["train"] = ledger.run("train", train_key, [run / "weights" / "last.pt"],
-                                  lambda: _train(train_key, mixed, run, recipe, spent))
+    trained = run / ("poles-robot.pt" if recipe.start.network == "crops" else "weights/last.pt")
+    results["train"] = ledger.run("train", train_key, [trained], lambda: _train(train_key, mixed, run, recipe, spent))
     conf = float(_starting_metadata(recipe)[OPERATING_CONF_KEY])
     blend_key = stage_key(train=train_key, conf=conf, default_share=DEFAULT_BLEND_SHARE, level=SIGN_TEST_LEVEL)
     results["blend"] = ledger.run("blend", blend_key, [out / "blend"], lambda: _blend(
-        run / "weights" / "last.pt", data, out / "blend", conf, recipe))
+        trained, data, out / "blend", conf, recipe))
     export_key = stage_key(blend=blend_key)
     model = out / "models" / recipe.start.finetuned_name
     results["export model"] = ledger.run("export model", export_key, [model], lambda: _export_model(
         Path(results["blend"]["weights"]), model, data, mixed, recipe))
     evaluate_key = stage_key(export=export_key, frames=recipe.evaluation_frames, sets=RENDERED_SETS)
     results["evaluate"] = ledger.run("evaluate", evaluate_key, [out / "evaluation" / "summary.json"], lambda: _evaluate(
-        out / "evaluation", data, run / "weights" / "last.pt", results["blend"], conf, recipe))
+        out / "evaluation", data, trained, results["blend"], conf, recipe))
     return results
 
 
@@ -143,12 +158,25 @@ def _mix(augmented: Path, rehearsal: Path | None, out: Path) -> dict:
     return dict(writer.counts)
 
 
+#: A resumed training that had spent its minutes still trains this long: its last epoch ends the schedule.
+MIN_RESUMED_MINUTES = 0.1
+
+
 def _train(key: str, data: Path, run: Path, recipe: FinetuneRecipe, spent_minutes: float) -> dict:
     """Fine-tune the shipped checkpoint for the minutes left; an interrupted run of the same stage (its key is kept
-    beside the run folder) resumes from its last epoch, a finished one is kept. The final weights are the fine-tune:
-    a valid split of a few frames cannot choose an epoch."""
+    beside the run folder) resumes from its last epoch with what is left of its minutes, a finished one is kept. The
+    final weights are the fine-tune: a valid split of a few frames cannot choose an epoch. The robot's crop network
+    trains in a minute or two and starts again instead."""
     from detector.model_files import read_checkpoint
-    from detector.training.train import TrainSettings, summarise_run, train_model
+    from detector.training.train import TrainSettings, summarise_run, train_model, trained_minutes
+
+    if recipe.start.network == "crops":
+        from detector.finetune import crop_network
+
+        shutil.rmtree(run, ignore_errors=True)
+        minutes = recipe.training_minutes(spent_minutes)
+        console.print(f"training the crop network for at most {recipe.epoch_cap} epochs or {minutes:.1f} minutes")
+        return crop_network.train(data, run, recipe.start.weights, recipe.epoch_cap, minutes, recipe.seed)
 
     last, key_file = run / "weights" / "last.pt", run.with_name(f"{run.name}.key")
     same_run = key_file.is_file() and key_file.read_text() == key and last.is_file()
@@ -156,10 +184,14 @@ def _train(key: str, data: Path, run: Path, recipe: FinetuneRecipe, spent_minute
     if run.exists() and not same_run:
         shutil.rmtree(run)
     key_file.write_text(key)
+    done = trained_minutes(run) if same_run else 0.0
     minutes = recipe.training_minutes(spent_minutes)
+    if same_run:
+        minutes = max(minutes - done, MIN_RESUMED_MINUTES)
     cap = f" or {recipe.epoch_cap} epochs, whichever comes first" if recipe.epoch_cap else ""
+    resumed = f", resumed after {done:.1f} trained before" if same_run else ""
     console.print(f"training for {minutes:.1f} minutes{cap} ({spent_minutes:.1f} spent preparing, "
-                  f"{recipe.after_training_minutes:.1f} kept for what follows)")
+                  f"{recipe.after_training_minutes:.1f} kept for what follows{resumed})")
     settings = TrainSettings(model=recipe.start.architecture, epochs=1000, imgsz=recipe.training_size,
                              batch=recipe.batch, patience=1000, seed=recipe.seed, time_hours=minutes / 60,
                              max_epochs=recipe.epoch_cap, hyperparameters=recipe.hyperparameters())
@@ -173,17 +205,36 @@ def _starting_metadata(recipe: FinetuneRecipe) -> dict:
     """The starting model's ONNX metadata (range calibration, operating threshold), which the fine-tune is judged
     at and ships with."""
     from detector.model_files import read_info
-    from naoslam.shipped import profile_model
+    from naoslam.shipped import resolve_model
 
-    return read_info(profile_model(recipe.start.profile)).extra
+    return read_info(resolve_model(recipe.start.shipped)).extra
+
+
+def _predictor_of(recipe: FinetuneRecipe):
+    """How a checkpoint of the starting model's network is run to be judged."""
+    if recipe.start.network == "crops":
+        from detector.finetune.crop_network import predictor
+
+        return predictor
+    from detector.evaluation.predictors import TorchPredictor
+
+    return lambda weights: TorchPredictor(weights, recipe.training_size)
 
 
 def _blend(finetuned: Path, data: Path, folder: Path, conf: float, recipe: FinetuneRecipe) -> dict:
     from detector.finetune.blend import choose_blend
 
+    if recipe.start.network == "crops":
+        from detector.finetune.crop_network import blend
+    else:
+        from detector.training.soup import blend_checkpoints
+
+        def blend(first: Path, second: Path, share: float, out: Path) -> Path:
+            return blend_checkpoints(first, second, share, out, force=True)
+
     shutil.rmtree(folder, ignore_errors=True)
     folder.mkdir(parents=True)
-    return choose_blend(recipe.start.weights, finetuned, data, folder, conf, recipe.training_size)
+    return choose_blend(recipe.start.weights, finetuned, data, folder, conf, _predictor_of(recipe), blend)
 
 
 def _export_model(weights: Path, model: Path, data: Path, mixed: Path, recipe: FinetuneRecipe) -> dict:
@@ -196,8 +247,12 @@ def _export_model(weights: Path, model: Path, data: Path, mixed: Path, recipe: F
     from export.run import ExportJob, run_export
 
     start = recipe.start
+    if start.network == "crops":
+        from detector.finetune.crop_network import export
+
+        return export(weights, model)
     report = run_export(ExportJob(weights, model, None, data, int8=start.int8, calib_data=mixed if start.int8 else None,
-                                  force=True, dynamic=start.dynamic))
+                                  force=True))
     written = [model, int8_path(model)] if start.int8 else [model]
     stamp = _starting_metadata(recipe)
     measured_at = stamp["calibration"].get("input_width")
@@ -229,4 +284,4 @@ def _evaluate(folder: Path, data: Path, finetuned: Path, blend: dict, conf: floa
     models = {REFERENCE: recipe.start.weights, "fine-tune": finetuned,
               f"blend {blend['chosen']:g}": Path(blend["weights"])}
     return {"held_out": held_out, "conf": conf,
-            "rows": compare_models(models, sets, folder, conf, recipe.training_size)}
+            "rows": compare_models(models, sets, folder, conf, _predictor_of(recipe))}

@@ -19,21 +19,21 @@ SIGN_TEST_LEVEL = 0.05
 
 @dataclass(frozen=True)
 class StartingModel:
-    """A shipped model a team fine-tunes: the ``LandmarkDetector`` profile that runs it, the width it was trained at,
-    its backbone's layer count (what ``freeze`` keeps by default), its measured recipe defaults (the share of
-    rendered frames, and an epoch cap or None for as many as the minutes allow; docs/finetune.md) and how it is
-    exported (the accurate model as FP32 and INT8 at a fixed input; the robot model as FP32 only, which runs faster
-    than INT8 at the Atom's instruction set, with a dynamic input for the horizon band), and the file name the
-    fine-tune is delivered under."""
+    """A shipped model a team fine-tunes: its shipped name (``shipped`` or ``shipped-robot``), its ``network``
+    (``yolo``: a YOLOv8-seg trained by Ultralytics at ``imgsz``, the first ``backbone_layers`` kept by default;
+    ``crops``: the robot's two-stage crop network, trained by ``detector.crops``), its measured recipe defaults (the
+    share of rendered frames, and an epoch cap or None for as many as the minutes allow; docs/finetune.md), whether
+    an INT8 copy is exported beside the FP32 model (the accurate one's; at the Atom's instruction set FP32 is the
+    faster), and the file name the fine-tune is delivered under."""
 
-    profile: str
+    shipped: str
+    network: str
     architecture: str
-    imgsz: int
+    imgsz: int | None
     backbone_layers: int
     rehearsal_share: float
     epochs: int | None
     int8: bool
-    dynamic: bool
     finetuned_name: str
 
     @property
@@ -41,14 +41,14 @@ class StartingModel:
         """The shipped checkpoint a fine-tune starts from and is blended and compared with."""
         from detector.model_files import ROBOT_WEIGHTS, SHIPPED_WEIGHTS
 
-        return ROBOT_WEIGHTS if self.profile == "robot" else SHIPPED_WEIGHTS
+        return ROBOT_WEIGHTS if self.network == "crops" else SHIPPED_WEIGHTS
 
 
 #: The shipped models ``poles finetune --model`` starts from.
-STARTING_MODELS = {"accurate": StartingModel("accurate", "yolov8n-seg", 640, 10, rehearsal_share=0.5, epochs=None,
-                                             int8=True, dynamic=False, finetuned_name="poles-finetuned.onnx"),
-                   "robot": StartingModel("robot", "robot-p4-seg", 320, 8, rehearsal_share=0.75, epochs=40,
-                                          int8=False, dynamic=True, finetuned_name="poles-robot-finetuned.onnx")}
+STARTING_MODELS = {"accurate": StartingModel("shipped", "yolo", "yolov8n-seg", 640, 10, rehearsal_share=0.5,
+                                             epochs=None, int8=True, finetuned_name="poles-finetuned.onnx"),
+                   "robot": StartingModel("shipped-robot", "crops", "pole-crops", None, 0, rehearsal_share=0.75,
+                                          epochs=30, int8=False, finetuned_name="poles-robot-finetuned.onnx")}
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import torch
 
-from detector.datasets.io import check_output_file
+from detector.outputs import check_output_file
 from detector.model_files import read_checkpoint
 from detector.atomic import atomic_path
 

@@ -22,12 +22,13 @@ from ultralytics.cfg import check_cfg, smart_value
 from ultralytics.models.yolo.segment import SegmentationTrainer
 from ultralytics.utils import DEFAULT_CFG, DEFAULT_CFG_DICT, torch_utils
 
+from detector.outputs import check_placement
 from detector.console import bars_as_log_lines
 from detector.training import defaults
 from detector.training.cpu_threads import ThreadTuner
 from detector.datasets.intake import open_dataset, training_view
 from detector.model_files import read_checkpoint
-from detector.training.curves import best_epoch, plot_training_curves
+from detector.training.curves import best_epoch, plot_training_curves, read_results
 from detector.training.devices import check_device
 from detector.training.distillation import check_teacher, shared_stride_distillation
 
@@ -141,7 +142,10 @@ class CpuSegmentationTrainer(SegmentationTrainer):
 
     def _setup_scheduler(self) -> None:
         """Ultralytics' schedule, over at most ``max_epochs``: in time mode it re-estimates the epochs that fill the
-        time after every epoch and calls this, then stops once the epoch count is reached."""
+        time after every epoch and calls this, then stops once the epoch count is reached. A resumed run's time is
+        what is left of its budget, so the epochs that fill it come after those already trained."""
+        if self.args.time and self.start_epoch > 0:
+            self.epochs = self.args.epochs = self.start_epoch + self.epochs
         if self.max_epochs is not None:
             self.epochs = self.args.epochs = min(self.epochs, self.max_epochs)
         super()._setup_scheduler()
@@ -164,8 +168,9 @@ def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | 
     if resume:
         last = out / "weights" / "last.pt"
         data_yaml = _resumable_data(last)  # before Ultralytics sees the path: it would look for a missing file online
+        left = {"time": settings.time_hours} if settings.time_hours else {}  # what is left of the run's budget
         _train(YOLO(str(last)), tuner, max_epochs=settings.max_epochs, resume=True, data=data_yaml,
-               workers=settings.workers)
+               workers=settings.workers, **left)
     else:
         if weights and not Path(weights).is_file():
             raise FileNotFoundError(f"{weights}: no such checkpoint (nothing is downloaded: pass a local .pt)")
@@ -176,6 +181,7 @@ def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | 
             print(f"distilling from {settings.teacher}")
         print(f"starting from {weights or f'{settings.model}.yaml (no pretrained weights)'}")
         dataset = open_dataset(data, progress=progress)
+        check_placement(out, (*dataset.input_folders(), *([Path(weights)] if weights else [])))
         _clear_unfinished_run(out)
         with _removed_unless_resumable(out):
             data_yaml = training_view(dataset, out / "dataset")
@@ -192,6 +198,17 @@ def train_model(data: Path, out: Path, settings: TrainSettings, weights: Path | 
                    name=out.name, exist_ok=True, amp=False, plots=False, deterministic=True, **options)
     plot_training_curves(out / "results.csv", out / "training_curves.png")
     return out
+
+
+def trained_minutes(run: Path) -> float:
+    """Minutes a run has trained so far, over every call that trained it (Ultralytics' results.csv counts each
+    call's time from that call's start)."""
+    path = Path(run) / "results.csv"
+    if not path.is_file():
+        return 0.0
+    times = read_results(path).get("time", [])
+    ends = [t for t, after in zip(times, times[1:] + [-1.0]) if after < t]  # each call's last epoch
+    return sum(ends) / 60
 
 
 def _train(model: YOLO, tuner: ThreadTuner | None, max_epochs: int | None = None, **options) -> None:

@@ -1,0 +1,46 @@
+"""``poles train-robot``: the robot's two-stage front end trained from annotated frames on the CPU - crops of the
+finder's candidates, the crop network trained on them, exported to ONNX and checked against PyTorch, its operating
+threshold chosen on the valid frames."""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from detector.cli.arguments import existing, positive_number, whole_number
+from detector.crops.settings import CropTrainSettings
+
+#: ``poles train-robot``'s defaults, read by its help.
+DEFAULTS = CropTrainSettings()
+
+
+def add_parsers(sub: argparse._SubParsersAction) -> None:
+    """Add the ``train-robot`` command to ``sub``."""
+    robot = sub.add_parser("train-robot", help="train the robot's two-stage front end (candidates + crop network) "
+                                               "on the CPU")
+    robot.add_argument("data", type=Path, nargs="+",
+                       help="dataset folders with data.yaml: train split for training, valid split for the best "
+                            "epoch and the threshold")
+    robot.add_argument("--out", type=Path, required=True,
+                       help="run folder: poles-robot.pt, poles-robot.onnx, history.json, training_curves.png")
+    robot.add_argument("--weights", type=Path, help="a poles-robot.pt to go on training from (default: from scratch)")
+    robot.add_argument("--epochs", type=whole_number(1), default=DEFAULTS.epochs,
+                       help=f"epochs over the crops (default {DEFAULTS.epochs})")
+    robot.add_argument("--minutes", type=positive_number,
+                       help="stop training after this many minutes even if epochs are left")
+    robot.add_argument("--seed", type=whole_number(0), default=DEFAULTS.seed,
+                       help=f"random seed (default {DEFAULTS.seed})")
+    robot.add_argument("--threads", type=whole_number(1), default=DEFAULTS.threads,
+                       help=f"torch threads (default {DEFAULTS.threads})")
+    robot.add_argument("--force", action="store_true", help="replace an earlier --out of poles")
+    robot.set_defaults(run=_train_robot)
+
+
+def _train_robot(args: argparse.Namespace) -> int:
+    from detector.robot_training import train_robot_front_end
+
+    settings = CropTrainSettings(epochs=args.epochs, seed=args.seed, threads=args.threads, minutes=args.minutes)
+    result = train_robot_front_end(args.data, args.out, settings, args.weights, args.force,
+                                   protect=existing(*args.data, args.weights))
+    print(json.dumps(result, indent=1))
+    return 0

@@ -1,0 +1,28 @@
+"""How the crop network is trained: one frozen settings object, torch-free, so ``poles train-robot`` builds its
+help from it without loading a framework."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class CropTrainSettings:
+    """How the crop network is trained."""
+
+    epochs: int = 40
+    batch: int = 256
+    learning_rate: float = 3e-3
+    weight_decay: float = 1e-4
+    seed: int = 0
+    threads: int = 2
+    #: Stop after this many minutes of training even if epochs are left (None: run every epoch).
+    minutes: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.epochs < 1 or self.batch < 1 or self.threads < 1:
+            raise ValueError(f"epochs {self.epochs}, batch {self.batch}, threads {self.threads}: each must be 1 or more")
+        if not (self.learning_rate > 0 and self.weight_decay >= 0):
+            raise ValueError(f"learning rate {self.learning_rate} must be above 0, weight decay {self.weight_decay} "
+                             "not below")
+        if self.minutes is not None and not self.minutes > 0:
+            raise ValueError(f"minutes {self.minutes}: give a positive time, or None for every epoch")

@@ -1,0 +1,179 @@
+"""Training the crop network on a two-core CPU: class cross-entropy on every crop, an L1 loss on the box of every
+pole crop, AdamW with a cosine schedule, horizontal flips and brightness changes; the epoch with the best validation
+score (pole crops named right with box IoU >= 0.5, minus no-pole crops taken for poles) is kept."""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from detector.atomic import atomic_path
+from detector.crops.network import PoleCropNet
+from detector.crops.samples import NO_POLE, CropSet
+from detector.crops.settings import CropTrainSettings
+from naoslam.landmarks import CLASSES
+
+#: Weights of the box's L1 loss (normalised crop units) and of its generalised IoU loss against the class
+#: cross-entropy.
+BOX_WEIGHT = 5.0
+GIOU_WEIGHT = 1.0
+#: Brightness is scaled by a factor drawn from this range per crop while training.
+BRIGHTNESS = (0.75, 1.25)
+
+
+@dataclass(frozen=True)
+class EpochResult:
+    """One epoch's training loss and validation figures."""
+
+    epoch: int
+    loss: float
+    pole_recall: float
+    false_pole_rate: float
+    box_iou: float
+    seconds: float
+
+    @property
+    def score(self) -> float:
+        return self.pole_recall - self.false_pole_rate
+
+
+def tensors(crops: CropSet) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """A crop set as (N, 3, H, W) float 0..1, class ids and boxes."""
+    images = torch.from_numpy(crops.crops).permute(0, 3, 1, 2).float().div_(255.0)
+    return images, torch.from_numpy(crops.classes), torch.from_numpy(np.nan_to_num(crops.boxes))
+
+
+def augment(images: torch.Tensor, boxes: torch.Tensor, generator: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
+    """Half the crops flipped left to right (with their boxes), every crop's brightness scaled."""
+    flip = torch.rand(len(images), generator=generator) < 0.5
+    images, boxes = images.clone(), boxes.clone()
+    images[flip] = images[flip].flip(3)
+    boxes[flip] = torch.stack([1 - boxes[flip, 2], boxes[flip, 1], 1 - boxes[flip, 0], boxes[flip, 3]], dim=1)
+    low, high = BRIGHTNESS
+    gain = low + (high - low) * torch.rand(len(images), 1, 1, 1, generator=generator)
+    return (images * gain).clamp_(0, 1), boxes
+
+
+def box_iou(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """IoU of paired boxes (N, 4) x0 y0 x1 y1."""
+    inter = _intersection(a, b)
+    return inter / (_area(a) + _area(b) - inter).clamp(min=1e-9)
+
+
+def _intersection(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    width = (torch.minimum(a[:, 2], b[:, 2]) - torch.maximum(a[:, 0], b[:, 0])).clamp(min=0)
+    height = (torch.minimum(a[:, 3], b[:, 3]) - torch.maximum(a[:, 1], b[:, 1])).clamp(min=0)
+    return width * height
+
+
+def _area(box: torch.Tensor) -> torch.Tensor:
+    return (box[:, 2] - box[:, 0]).clamp(min=0) * (box[:, 3] - box[:, 1]).clamp(min=0)
+
+
+def loss_of(outputs: torch.Tensor, classes: torch.Tensor, boxes: torch.Tensor) -> torch.Tensor:
+    """Cross-entropy over the seven classes plus the weighted L1 box loss of the pole crops."""
+    logits, predicted = outputs[:, :NO_POLE + 1], outputs[:, NO_POLE + 1:]
+    loss = nn.functional.cross_entropy(logits, classes)
+    poles = classes != NO_POLE
+    if poles.any():
+        loss = loss + BOX_WEIGHT * nn.functional.l1_loss(predicted[poles], boxes[poles])
+        loss = loss + GIOU_WEIGHT * (1 - generalised_iou(predicted[poles], boxes[poles])).mean()
+    return loss
+
+
+def generalised_iou(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """GIoU of paired boxes (N, 4): IoU less the share of their enclosing box that neither covers, so boxes that do
+    not overlap still pull together."""
+    inter = _intersection(a, b)
+    union = (_area(a) + _area(b) - inter).clamp(min=1e-9)
+    enclosing = ((torch.maximum(a[:, 2], b[:, 2]) - torch.minimum(a[:, 0], b[:, 0])).clamp(min=0)
+                 * (torch.maximum(a[:, 3], b[:, 3]) - torch.minimum(a[:, 1], b[:, 1])).clamp(min=0))
+    return inter / union - (enclosing - union) / enclosing.clamp(min=1e-9)
+
+
+@torch.no_grad()
+def validate(network: PoleCropNet, crops: CropSet, conf: float = 0.5) -> tuple[float, float, float]:
+    """Pole recall (right class, probability >= conf, box IoU >= 0.5), the share of no-pole crops taken for a pole,
+    and the mean box IoU of the pole crops."""
+    network.eval()
+    images, classes, boxes = tensors(crops)
+    outputs = torch.cat([network(images[i:i + 1024]) for i in range(0, len(images), 1024)])
+    probabilities = torch.softmax(outputs[:, :NO_POLE + 1], dim=1)
+    best, named = probabilities[:, :NO_POLE].max(dim=1)
+    poles = classes != NO_POLE
+    iou = box_iou(outputs[:, NO_POLE + 1:], boxes)
+    found = poles & (named == classes) & (best >= conf) & (iou >= 0.5)
+    recall = float(found.sum() / poles.sum().clamp(min=1))
+    false_rate = float(((~poles) & (best >= conf)).sum() / (~poles).sum().clamp(min=1))
+    return recall, false_rate, float(iou[poles].mean()) if poles.any() else 0.0
+
+
+def train_crop_network(train: CropSet, valid: CropSet, settings: CropTrainSettings = CropTrainSettings(),
+                       start: PoleCropNet | None = None, log=print) -> tuple[PoleCropNet, list[EpochResult]]:
+    """Train (or go on training ``start``) on ``train``; the best epoch on ``valid`` is returned with every epoch's
+    figures."""
+    torch.manual_seed(settings.seed)
+    torch.set_num_threads(settings.threads)
+    network = start if start is not None else PoleCropNet()
+    images, classes, boxes = tensors(train)
+    optimiser = torch.optim.AdamW(network.parameters(), lr=settings.learning_rate, weight_decay=settings.weight_decay)
+    steps = settings.epochs * math.ceil(len(images) / settings.batch)
+    schedule = torch.optim.lr_scheduler.OneCycleLR(optimiser, settings.learning_rate, total_steps=steps,
+                                                   pct_start=0.1)
+    generator = torch.Generator().manual_seed(settings.seed)
+    best_state, best_score, history, started = None, -math.inf, [], time.perf_counter()
+    for epoch in range(1, settings.epochs + 1):
+        network.train()
+        order, total, began = torch.randperm(len(images), generator=generator), 0.0, time.perf_counter()
+        for i in range(0, len(order), settings.batch):
+            batch = order[i:i + settings.batch]
+            batch_images, batch_boxes = augment(images[batch], boxes[batch], generator)
+            loss = loss_of(network(batch_images), classes[batch], batch_boxes)
+            optimiser.zero_grad()
+            loss.backward()
+            optimiser.step()
+            schedule.step()
+            total += loss.item() * len(batch)
+        recall, false_rate, iou = validate(network, valid)
+        result = EpochResult(epoch, total / len(images), recall, false_rate, iou, time.perf_counter() - began)
+        history.append(result)
+        log(f"epoch {epoch}/{settings.epochs}: loss {result.loss:.4f}, valid pole recall {recall:.3f}, "
+            f"false poles {false_rate:.4f}, box IoU {iou:.3f} ({result.seconds:.0f} s)")
+        if result.score > best_score:
+            best_score, best_state = result.score, {k: v.clone() for k, v in network.state_dict().items()}
+        if settings.minutes is not None and time.perf_counter() - started > 60 * settings.minutes:
+            log(f"stopped after {epoch} epochs: the {settings.minutes:g} minutes are spent")
+            break
+    network.load_state_dict(best_state)
+    return network.eval(), history
+
+
+def save_checkpoint(network: PoleCropNet, path: Path, history: list[EpochResult], settings: CropTrainSettings) -> Path:
+    """The network, its shape and how it was trained, as one torch file (written atomically)."""
+    checkpoint = {"kind": "pole-crops", "classes": list(CLASSES), "size_wh": list(network.size_wh),
+                  "channels": [layer[0].out_channels for layer in network.features],
+                  "hidden": network.head[1].out_features, "state": network.state_dict(),
+                  "settings": asdict(settings), "history": [asdict(h) for h in history]}
+    with atomic_path(path) as tmp:
+        torch.save(checkpoint, tmp)
+    return Path(path)
+
+
+def load_checkpoint(path: Path) -> PoleCropNet:
+    """A crop network saved by :func:`save_checkpoint`; ValueError naming the file for anything else."""
+    try:
+        checkpoint = torch.load(str(path), map_location="cpu", weights_only=False)
+    except Exception as error:  # pickle, zip and runtime errors of files that are not checkpoints
+        raise ValueError(f"{path}: not a readable PyTorch checkpoint ({type(error).__name__}) - pass a "
+                         "poles-robot.pt written by `poles train-robot`") from None
+    if not isinstance(checkpoint, dict) or checkpoint.get("kind") != "pole-crops":
+        raise ValueError(f"{path}: not a crop network checkpoint - pass a poles-robot.pt written by "
+                         "`poles train-robot`")
+    network = PoleCropNet(tuple(checkpoint["size_wh"]), tuple(checkpoint["channels"]), checkpoint["hidden"])
+    network.load_state_dict(checkpoint["state"])
+    return network.eval()

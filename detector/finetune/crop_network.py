@@ -1,0 +1,84 @@
+"""``poles finetune --model robot``: the robot's crop network fine-tuned on a team's frames and the rehearsal,
+blended with the shipped one and exported, with the same stages as the accurate model's YOLOv8 (``pipeline``).
+
+Training crops come from the mixed set's train frames (the team's augmented frames and the rendered rehearsal), the
+best epoch is picked on the crops of the team's valid frames; a blend is the shipped and the fine-tuned network
+weight by weight; each checkpoint is judged through its ONNX export, as the robot runs it (boxes matched by IoU).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from detector.crops.curves import plot_crop_history
+from detector.crops.export import export_crop_network
+from detector.crops.samples import NO_POLE, crops_of_dataset
+from detector.crops.settings import CropTrainSettings
+from detector.crops.train import load_checkpoint, save_checkpoint, train_crop_network
+from detector.evaluation.predictors import OnnxPredictor, Predictor
+from detector.model_files import add_metadata, read_info
+from naoslam.shipped import OPERATING_CONF_KEY, resolve_model
+
+#: The fine-tune's learning rate: a tenth of training from scratch, as it starts from a trained network.
+FINETUNE_LEARNING_RATE = 3e-4
+#: Crops that check an export against PyTorch when none of the team's are at hand.
+CHECK_CROPS = 16
+
+
+def train(data: Path, run: Path, weights: Path, epochs: int, minutes: float, seed: int) -> dict:
+    """Fine-tune the crop network at ``weights`` on ``data``'s train frames (valid frames pick the epoch) into
+    ``run``/poles-robot.pt."""
+    start = load_checkpoint(weights)
+    train_crops = crops_of_dataset(data, ("train",), start.size_wh, seed=seed)
+    valid_crops = crops_of_dataset(data, ("valid",), start.size_wh, seed=seed + 1)
+    if not (valid_crops.classes != NO_POLE).any():
+        valid_crops = train_crops  # a valid split without a pole cannot pick an epoch: the last is as good
+    settings = CropTrainSettings(epochs=epochs, learning_rate=FINETUNE_LEARNING_RATE, seed=seed, minutes=minutes)
+    network, history = train_crop_network(train_crops, valid_crops, settings, start)
+    run.mkdir(parents=True, exist_ok=True)
+    checkpoint = save_checkpoint(network, run / "poles-robot.pt", history, settings)
+    curves = plot_crop_history(history, run / "training_curves.png")
+    return {"weights": str(checkpoint), "epochs": len(history), "train_crops": len(train_crops),
+            "minutes": round(sum(h.seconds for h in history) / 60, 2), "curves": str(curves)}
+
+
+def blend(shipped: Path, finetuned: Path, share: float, out: Path) -> Path:
+    """``(1 - share) * shipped + share * finetuned``, every tensor (batch-norm statistics too), saved at ``out``."""
+    first, second = load_checkpoint(shipped), load_checkpoint(finetuned)
+    a, b = first.state_dict(), second.state_dict()
+    second.load_state_dict({name: (1 - share) * a[name] + share * b[name] if b[name].is_floating_point() else b[name]
+                            for name in b})
+    settings = CropTrainSettings(**torch.load(str(finetuned), weights_only=False)["settings"])
+    return save_checkpoint(second, out, [], settings)
+
+
+def onnx_of(weights: Path) -> Path:
+    """The checkpoint's ONNX beside it (written once), with the shipped model's metadata (threshold, calibration)."""
+    model = Path(weights).with_suffix(".onnx")
+    if not model.is_file() or model.stat().st_mtime < Path(weights).stat().st_mtime:
+        export(weights, model)
+    return model
+
+
+def export(weights: Path, model: Path) -> dict:
+    """The crop network at ``weights`` as the robot's ONNX file, checked against PyTorch, carrying the shipped robot
+    model's threshold and range calibration (its boxes are measured in frame pixels, so the laws hold)."""
+    network = load_checkpoint(weights)
+    width, height = network.size_wh
+    check = np.random.default_rng(0).integers(0, 256, (CHECK_CROPS, height, width, 3), dtype=np.uint8)
+    stamp = shipped_metadata()
+    difference = export_crop_network(network, model, check, stamp[OPERATING_CONF_KEY])
+    add_metadata(model, **{key: value for key, value in stamp.items() if key != "training"})
+    return {"fp32": str(model), "int8": None, "calibrated": "calibration" in stamp, "onnx_difference": difference}
+
+
+def shipped_metadata() -> dict:
+    """The shipped robot model's metadata: its operating threshold and range calibration."""
+    return read_info(resolve_model("shipped-robot")).extra
+
+
+def predictor(weights: Path) -> Predictor:
+    """How a checkpoint is judged: its ONNX export through the runtime's two-stage front end."""
+    return OnnxPredictor(onnx_of(weights))

@@ -1,0 +1,98 @@
+"""The robot front end's whole training recipe, from annotated frames to a verified ONNX file with its threshold:
+crops of every dataset's train and valid splits, the crop network trained (or trained on from a checkpoint), the
+export checked against PyTorch, and the operating threshold the best F1 on the valid frames (boxes matched by IoU).
+Everything lands in the run folder at once, or nothing does."""
+from __future__ import annotations
+
+import json
+import os
+import platform
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+from detector.crops.curves import plot_crop_history
+from detector.crops.export import export_crop_network
+from detector.crops.network import CROP_SIZE_WH
+from detector.crops.samples import NO_POLE, CropSet, crops_of_dataset
+from detector.crops.settings import CropTrainSettings
+from detector.crops.train import load_checkpoint, save_checkpoint, train_crop_network
+from detector.datasets.io import load_dataset
+from detector.outputs import check_output_folder, output_folder
+from detector.datasets.truth import load_camera_poses, load_truth
+from detector.evaluation.counting import best_threshold, confidence_sweep
+from detector.evaluation.predictors import OnnxPredictor
+from detector.evaluation.run import evaluate_frames
+from detector.model_files import add_metadata
+
+#: The files a run folder holds.
+CHECKPOINT, MODEL = "poles-robot.pt", "poles-robot.onnx"
+#: The kind of output a run folder is (``detector.outputs``).
+RUN_KIND = "robot front end run"
+#: The threshold a model is exported at before the valid frames choose its own.
+EXPORT_CONF = 0.5
+
+
+def machine() -> str:
+    """This machine in a few words: its cores and processor."""
+    try:
+        name = next(line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines()
+                    if line.startswith("model name"))
+    except (OSError, StopIteration):
+        name = platform.processor() or platform.machine()
+    return f"{os.cpu_count()} cores, {name}"
+
+
+def crop_sets(data: list[Path], split: str, seed: int, progress: bool = True) -> CropSet:
+    """The crops of one split of every dataset."""
+    return CropSet.concatenate([crops_of_dataset(Path(root), (split,), CROP_SIZE_WH, seed=seed + i,
+                                                 progress=progress) for i, root in enumerate(data)])
+
+
+def valid_threshold(model: Path, data: list[Path], progress: bool = True) -> tuple[float, float]:
+    """The confidence threshold of the best F1 over every dataset's valid frames (each with its camera pose where
+    annotations.json records one, as on the robot), and that F1."""
+    predictor = OnnxPredictor(model)
+    images = []
+    for root in data:
+        dataset = load_dataset(root)
+        images += evaluate_frames(predictor, dataset.split("valid"), load_truth(dataset), "choosing the threshold",
+                                  progress, poses=load_camera_poses(dataset))
+    sweep = confidence_sweep(images)
+    threshold = best_threshold(sweep) or EXPORT_CONF
+    return threshold, max(row["f1"] for row in sweep)
+
+
+def train_robot_front_end(data: list[Path], out: Path, settings: CropTrainSettings = CropTrainSettings(),
+                          weights: Path | None = None, force: bool = False, protect: tuple[Path, ...] = (),
+                          progress: bool = True) -> dict:
+    """Train the crop network on ``data`` into the run folder ``out``; returns its summary (also in history.json)."""
+    data = [Path(root) for root in data]
+    inputs = (*protect, *(folder for root in data for folder in load_dataset(root).input_folders()))
+    check_output_folder(out, force, inputs, RUN_KIND)
+    start = load_checkpoint(weights) if weights is not None else None
+    began = time.perf_counter()
+    train, valid = crop_sets(data, "train", settings.seed, progress), crop_sets(data, "valid", settings.seed + 1000,
+                                                                                progress)
+    for name, crops in (("train", train), ("valid", valid)):
+        if not (crops.classes != NO_POLE).any():
+            raise ValueError(f"{', '.join(map(str, data))}: no labelled pole in the {name} split - the crop network "
+                             f"needs poles to learn from in train and valid (`poles split` makes both)")
+    with output_folder(out, force, inputs, RUN_KIND) as folder:
+        network, history = train_crop_network(train, valid, settings, start)
+        save_checkpoint(network, folder / CHECKPOINT, history, settings)
+        difference = export_crop_network(network, folder / MODEL, valid.crops[:256], EXPORT_CONF)
+        threshold, f1 = valid_threshold(folder / MODEL, data, progress)
+        training = {"minutes": round((time.perf_counter() - began) / 60, 1), "hardware": machine(),
+                    "epochs": len(history), "frames": sum(len(load_dataset(root).split("train")) for root in data)}
+        add_metadata(folder / MODEL, operating_conf=threshold, training=training)
+        plot_crop_history(history, folder / "training_curves.png")
+        best = max(history, key=lambda h: h.score)
+        summary = {"data": [str(d) for d in data], "train_crops": len(train), "valid_crops": len(valid),
+                   "pole_crops": int((train.classes != NO_POLE).sum()), "best_epoch": asdict(best),
+                   "epochs": len(history), "minutes": round(sum(h.seconds for h in history) / 60, 2),
+                   "onnx_difference": difference, "operating_conf": threshold, "valid_f1": f1,
+                   "settings": asdict(settings), "weights": str(weights) if weights else None}
+        (folder / "history.json").write_text(json.dumps({**summary, "history": [asdict(h) for h in history]},
+                                                        indent=1))
+    return {**summary, "model": str(Path(out) / MODEL)}

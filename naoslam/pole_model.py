@@ -1,0 +1,132 @@
+"""What every pole model file shares, whichever front end runs it: the ONNX session, the naoslam metadata, the
+operating threshold and the range calibration stored in it, and the camera's field of view for the ground view."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import onnxruntime as ort
+
+from naoslam.engines import ENGINES
+from naoslam.camera import NAO_HFOV_DEG, CameraPose, PinholeCamera
+from naoslam.ground import GroundView
+from naoslam.measurement import RangeCalibration
+from naoslam.model_info import ModelInfo
+from naoslam.shipped import OPERATING_CONF_KEY, model_argument
+
+
+def valid_confidence(conf: float) -> float:
+    """``conf`` as a float when it can be a confidence threshold (between 0 and 1), else a ValueError: a threshold
+    of 5 would drop every detection and one of -1 keep every candidate box, both without a word."""
+    conf = float(conf)
+    if not 0.0 < conf < 1.0:
+        raise ValueError(f"confidence threshold {conf} must lie between 0 and 1")
+    return conf
+
+
+def load_session(path: Path | str, threads: int | None = None) -> ort.InferenceSession:
+    """An onnxruntime CPU session; a missing or unreadable file raises an error that names it."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such model file - export one with `poles export --weights best.pt`")
+    if path.suffix == ".pt":
+        raise ValueError(f"{path}: a PyTorch checkpoint; the runtime runs its ONNX export - "
+                         f"`poles export --weights {path} --out {path.with_suffix('.onnx')}`")
+    options = ort.SessionOptions()
+    options.intra_op_num_threads = threads or os.cpu_count() or 1
+    options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
+    # Idle worker threads sleep instead of spinning: the robot's other processes need the cores between frames.
+    options.add_session_config_entry("session.intra_op.allow_spinning", "0")
+    try:
+        return ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
+    except Exception as exc:  # onnxruntime raises several private exception types
+        raise ValueError(f"{path}: not a readable ONNX model ({str(exc).splitlines()[0][:200]}) - "
+                         "re-export it with `poles export`") from None
+
+
+def check_options(engine: str, threads: int | None) -> None:
+    """Refuse an engine naoslam does not have and a thread count below one."""
+    if engine not in ENGINES:
+        raise ValueError(f"engine {engine!r} is not one of {', '.join(ENGINES)}")
+    if threads is not None and threads < 1:
+        raise ValueError(f"threads {threads}: give 1 or more, or None for one per core")
+
+
+def check_classes(model: "PoleModel", classes: tuple[str, ...] | None) -> None:
+    """Refuse a model trained on other class names than ``classes`` (None: accept any)."""
+    if classes is not None and tuple(model.info.classes) != tuple(classes):
+        raise ValueError(f"{model.path}: the model's classes {list(model.info.classes)} are not the pole classes "
+                         f"{list(classes)} - train on a dataset whose data.yaml names them in this order")
+
+
+class PoleModel:
+    """A pole model file opened for inference: ``path``, its onnxruntime ``session`` and metadata ``info``.
+
+    Subclasses set ``calibration_width``: the input width whose pixel sizes a calibration must have been measured
+    at (None: frame pixels, as on labels).
+    """
+
+    calibration_width: int | None = None
+
+    def __init__(self, path: Path, threads: int | None = None, session: ort.InferenceSession | None = None):
+        self.path = Path(path)
+        self.session = session if session is not None else load_session(self.path, threads)
+        self.info = ModelInfo.from_metadata(self.session.get_modelmeta().custom_metadata_map, self.path)
+        self.gate_rejections: list[tuple[object, str]] = []
+        self.gate_rejected = 0
+        calibration = self.stored_calibration  # its camera's field of view holds at any input width
+        #: The camera's horizontal field of view for the ground-plane gate: the calibration's, else the Nao's.
+        self.hfov_deg = calibration.hfov_deg if calibration is not None else NAO_HFOV_DEG
+
+    @property
+    def classes(self) -> tuple[str, ...]:
+        return self.info.classes
+
+    @property
+    def stored_conf(self) -> float | None:
+        """The confidence threshold the model was shipped to run at (``operating_conf`` in its metadata), if any."""
+        stored = self.info.extra.get(OPERATING_CONF_KEY)
+        return float(stored) if stored is not None else None
+
+    @property
+    def stored_calibration(self) -> RangeCalibration | None:
+        """The range calibration stored in the model by ``poles calibrate --embed`` (None if there is none)."""
+        data = self.info.extra.get("calibration")
+        try:
+            return RangeCalibration.from_dict(data) if data else None
+        except (ValueError, TypeError, KeyError) as error:
+            raise ValueError(f"{self.path}: the calibration in the model is not one ({error}) - store a new one "
+                             f"with `poles calibrate --embed {model_argument(self.path)}`") from None
+
+    @property
+    def calibration(self) -> RangeCalibration | None:
+        """The stored calibration, refused (ValueError) when it was measured at another input width than this
+        detector runs the model at."""
+        stored = self.stored_calibration
+        return self.check_calibration(stored) if stored else None
+
+    @property
+    def usable_calibration(self) -> RangeCalibration | None:
+        """The stored calibration where it holds at this detector's input width, else None: no ranges rather than
+        wrong ones."""
+        stored = self.stored_calibration
+        return stored if stored is not None and self.fits_calibration(stored) else None
+
+    def fits_calibration(self, calibration: RangeCalibration) -> bool:
+        """Whether ``calibration``'s laws hold for this detector's masks: measured at its input width, or on labels."""
+        return calibration.input_width in (None, self.calibration_width)
+
+    def check_calibration(self, calibration: RangeCalibration) -> RangeCalibration:
+        """``calibration``, or ValueError naming the fix when it was measured at another input width."""
+        if not self.fits_calibration(calibration):
+            measured, width = calibration.input_width, self.calibration_width
+            raise ValueError(f"{self.path}: the range calibration was measured at {measured} px input, the model runs "
+                             f"at {width} px here, where its masks read other sizes - run it at {measured} "
+                             f"(input_width={measured}, --imgsz {measured}) or calibrate at {width} "
+                             f"(`poles calibrate --model {model_argument(self.path)} --imgsz {width}`)")
+        return calibration
+
+    def ground_view(self, frame_hw: tuple[int, int], camera_pose: CameraPose) -> GroundView:
+        """The floor as this detector's camera sees it in a frame of ``frame_hw`` from ``camera_pose``."""
+        return GroundView(PinholeCamera(frame_hw[1], frame_hw[0], self.hfov_deg), camera_pose)
+

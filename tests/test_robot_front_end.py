@@ -1,0 +1,193 @@
+"""The robot's two-stage front end: candidates at full resolution, the crop network, box-only detections measured,
+gated and scored like masks."""
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+
+import cv2
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from detector.crops.samples import NO_POLE, crops_of_dataset, pole_for
+from detector.evaluation.counting import evaluate_image
+from detector.synth.render import render_scene
+from detector.synth.scene import calibration_scene
+from naoslam.camera import PinholeCamera
+from naoslam.candidates import CandidateFinder, window_around_box
+from naoslam.crop_detector import CropDetector
+from naoslam.crops import crop_window, to_crop, to_frame
+from naoslam.detections import Detection
+from naoslam.detector import LandmarkDetector, load_detector
+from naoslam.ground import GroundView, PoleExtent
+from naoslam.landmarks import CLASSES
+from tests.conftest import REPOSITORY, assert_runs_without_training_side
+
+CROP_WH = (24, 72)
+
+
+def _rendered(code: str, range_m: float, angle_deg: float, seed: int):
+    """A 640x480 frame of one pole, its box and the camera's ground view."""
+    camera = PinholeCamera(640, 480)
+    scene = calibration_scene(np.random.default_rng(seed), camera, code, range_m, angle_deg)
+    frame = render_scene(scene)
+    rows, columns = np.nonzero(frame.poles[0].mask)
+    box = (float(columns.min()), float(rows.min()), float(columns.max() + 1), float(rows.max() + 1))
+    image = cv2.cvtColor((frame.image * 255 + 0.5).astype(np.uint8), cv2.COLOR_RGB2BGR)
+    return image, box, GroundView(camera, scene.pose)
+
+
+def _yuyv(bgr: np.ndarray) -> np.ndarray:
+    """The camera's full-range YUYV buffer of a BGR frame (each pixel pair's chroma averaged)."""
+    ycrcb = cv2.cvtColor(bgr, cv2.COLOR_BGR2YCrCb).astype(np.float32)
+    pairs = (ycrcb[:, 0::2] + ycrcb[:, 1::2]) / 2
+    out = np.empty(bgr.shape[:2] + (2,), np.uint8)
+    out[..., 0] = ycrcb[..., 0]
+    out[:, 0::2, 1] = np.round(pairs[..., 2])  # U (Cb)
+    out[:, 1::2, 1] = np.round(pairs[..., 1])  # V (Cr)
+    return out
+
+
+@pytest.mark.parametrize("code, range_m, angle", [("pb", 0.75, 0.0), ("gp", 2.0, 10.0), ("py", 4.0, -20.0),
+                                                  ("bp", 6.0, 0.0), ("yp", 8.0, 10.0), ("pg", 9.0, -10.0)])
+def test_a_candidate_frames_each_rendered_pole_near_and_far(code, range_m, angle):
+    image, box, view = _rendered(code, range_m, angle, seed=3)
+    for found in (CandidateFinder()(image, view), CandidateFinder()(image)):
+        assert any(pole_for(c.window, [box], image.shape[:2]) == 0 for c in found), (code, range_m, found)
+
+
+def test_with_the_pose_only_the_band_below_the_horizon_is_searched():
+    image, box, view = _rendered("pb", 3.0, 0.0, seed=4)
+    above = image.copy()
+    top = view.band_top()
+    above[:top] = (180, 60, 230)  # pink sky: no pole can stand there
+    assert all(c.anchor[1] >= top for c in CandidateFinder()(above, view))
+    assert any(c.anchor[1] < top for c in CandidateFinder()(above))
+
+
+def test_the_camera_s_yuyv_buffer_gives_the_candidates_of_its_bgr_frame():
+    image, box, view = _rendered("gp", 3.0, 0.0, seed=6)
+    from_yuyv = CandidateFinder()(_yuyv(image), view)
+    assert any(pole_for(c.window, [box], image.shape[:2]) == 0 for c in from_yuyv)
+    crop = crop_window(_yuyv(image), from_yuyv[0].window, CROP_WH)
+    assert np.abs(crop.astype(int) - crop_window(image, from_yuyv[0].window, CROP_WH)).mean() < 6
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.floats(-50, 600), st.floats(-50, 400), st.floats(4, 200), st.floats(0.05, 0.95), st.floats(0.05, 0.95))
+def test_boxes_go_to_the_crop_and_back_unchanged(x0, y0, size, left, top):
+    window = (x0, y0, x0 + size, y0 + 3 * size)
+    box = (x0 + left * size * 0.5, y0 + top * size, x0 + size * 0.9, y0 + 2.5 * size)
+    back = to_frame(to_crop(box, window)[None], np.array([window]))[0]
+    assert np.allclose(back, box, atol=1e-6)
+
+
+def test_a_window_reaching_outside_the_frame_is_black_there():
+    frame = np.full((100, 100, 3), 200, np.uint8)
+    crop = crop_window(frame, (-50.0, 0.0, 50.0, 300.0), (24, 72))
+    assert crop[:, :10].max() == 0 and crop[:20, 14:].min() == 200 and crop[-20:].max() == 0
+
+
+@pytest.fixture(scope="module")
+def tiny_crop_model(synth_dataset, tmp_path_factory):
+    """The crop network trained for two epochs on the session's rendered frames, exported to ONNX."""
+    from detector.crops.export import export_crop_network
+    from detector.crops.network import PoleCropNet
+    from detector.crops.settings import CropTrainSettings
+    from detector.crops.train import train_crop_network
+
+    crops = crops_of_dataset(synth_dataset, ("train", "valid", "test"), CROP_WH, progress=False)
+    network, history = train_crop_network(crops, crops, CropTrainSettings(epochs=2, batch=64, threads=1),
+                                          PoleCropNet(CROP_WH), log=lambda line: None)
+    path = tmp_path_factory.mktemp("crops") / "crops.onnx"
+    export_crop_network(network, path, crops.crops[:32], conf=0.3)
+    return path, crops, history
+
+
+def test_the_crop_set_names_poles_and_backgrounds_with_boxes_for_poles(tiny_crop_model):
+    _, crops, _ = tiny_crop_model
+    poles = crops.classes != NO_POLE
+    assert poles.any() and (~poles).any()
+    assert np.isfinite(crops.boxes[poles]).all() and np.isnan(crops.boxes[~poles]).all()
+    assert (crops.boxes[poles, 2] > crops.boxes[poles, 0]).all() and (crops.boxes[poles, 3] > crops.boxes[poles, 1]).all()
+
+
+def test_the_crop_network_trains_and_its_export_loads_as_the_two_stage_front_end(tiny_crop_model, synth_dataset):
+    path, _, history = tiny_crop_model
+    assert len(history) == 2 and history[-1].loss < history[0].loss
+    detector = load_detector(path, conf=0.01)
+    assert isinstance(detector, CropDetector) and detector.size_wh == CROP_WH
+    frame = cv2.imread(str(sorted((synth_dataset / "train" / "images").glob("*.jpg"))[0]))
+    found = detector(frame)
+    assert all(d.box_only and d.name in CLASSES and 0 < d.confidence <= 1 for d in found)
+    with pytest.raises(ValueError, match="two-stage robot model"):
+        LandmarkDetector(path)
+
+
+def test_the_two_stage_front_end_runs_without_the_training_side(tiny_crop_model):
+    path, _, _ = tiny_crop_model
+    assert_runs_without_training_side(
+        f"import naoslam; naoslam.load_detector({str(path)!r}, conf=0.01)(np.zeros((240, 320, 3), np.uint8))")
+
+
+def test_a_box_only_front_end_is_scored_by_box_iou():
+    mask = np.zeros((100, 100), bool)
+    mask[20:80, 40:52] = True
+    mask[20:24, 40:44] = False  # a mask IoU below the box IoU
+    hit = Detection.from_box("pb", 0.9, (40, 20, 52, 80))
+    off = Detection.from_box("pb", 0.9, (46, 20, 58, 80))  # half a pole to the side
+    by_box = evaluate_image("f", ["pb"], [mask], [None], [hit, off], mask.shape, "box")
+    assert by_box.overlap[0, 0] == pytest.approx(1.0) and by_box.overlap[1, 0] == pytest.approx(6 / 18)
+    assert by_box.counts(0.5) == {"tp": 1, "fp": 1, "fn": 0, "tn": 0}
+    by_mask = evaluate_image("f", ["pb"], [mask], [None], [hit], mask.shape, "mask")
+    assert by_mask.overlap[0, 0] < 1.0
+
+
+def test_a_box_gives_the_extent_of_the_mask_that_fills_it():
+    mask = np.zeros((60, 40), bool)
+    mask[10:50, 12:20] = True
+    from_mask = Detection.from_mask("gp", 1.0, mask)
+    from_box = Detection.from_box("gp", 1.0, from_mask.box)
+    assert from_box.extent == from_mask.extent == PoleExtent((16.0, 10.0), (16.0, 50.0))
+    assert (from_box.rotated_box.width, from_box.rotated_box.height) == (8.0, 40.0)
+    assert from_box.centre_column == from_mask.centre_column and from_box.full_mask(mask.shape).sum() == mask.sum()
+
+
+def test_the_ground_gate_judges_a_box_as_the_mask_it_bounds():
+    image, box, view = _rendered("py", 3.0, 0.0, seed=9)
+    assert view.check_extent(PoleExtent.of_box(box)) is None
+    tall = (box[0], box[1] - 2 * (box[3] - box[1]), box[2], box[3])
+    assert "px tall" in view.check_extent(PoleExtent.of_box(tall)) or "horizon" in view.check_extent(
+        PoleExtent.of_box(tall))
+
+
+def test_the_finder_s_window_around_a_box_holds_the_pole_at_its_scale():
+    box = (300.0, 200.0, 312.0, 250.0)
+    window = window_around_box(box, (480, 640))
+    assert pole_for(window, [box], (480, 640)) == 0
+    assert math.isclose((window[3] - window[1]) / (box[3] - box[1]), 1.5)
+
+
+def _machine_has_avx2() -> bool:
+    from numpy._core._multiarray_umath import __cpu_features__
+
+    return bool(__cpu_features__.get("AVX2"))
+
+
+@pytest.mark.skipif(not _machine_has_avx2(), reason="this CPU has no AVX2: an uncapped library looks capped here")
+@pytest.mark.parametrize("dropped", [None, "ONEDNN_MAX_CPU_ISA", "NPY_DISABLE_CPU_FEATURES", "OPENCV_CPU_DISABLE"])
+def test_the_robot_benchmark_refuses_to_time_when_a_cap_is_off(dropped):
+    sys.path.insert(0, str(REPOSITORY / "benchmarks"))
+    from bench_robot import worker_environment
+
+    env = worker_environment(capped=True)
+    env.pop(dropped, None)
+    code = (f"import json, sys; sys.path.insert(0, {str(REPOSITORY / 'benchmarks')!r}); "
+            "from bench_robot import caps_in_force; print(json.dumps(caps_in_force()))")
+    result = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    problems = json.loads(result.stdout.strip().splitlines()[-1])
+    assert (problems == []) == (dropped is None), problems
