@@ -9,6 +9,9 @@ import yaml
 #: Operation names, in the order they are applied when chosen: geometry, box-level, then colour.
 OPERATIONS: tuple[str, ...] = ("rotate", "shear", "box_rotate", "box_brightness", "box_blur", "saturation", "brightness")
 
+#: Augmented copies per training image, as the thesis made them.
+THESIS_COPIES = 7
+
 
 @dataclass(frozen=True)
 class AugmentConfig:

@@ -8,7 +8,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from augment.config import AugmentConfig
+from augment.config import THESIS_COPIES, AugmentConfig
 from augment.pipeline import augment_copy, choose_operations
 from detector.console import show_progress
 from detector.datasets.intake import open_dataset
@@ -52,7 +52,7 @@ def _augment_sample(task: _Task) -> list[_Copy]:
     return copies
 
 
-def augment_dataset(data: str | Path, out: str | Path, *, copies: int = 7, seed: int = 0,
+def augment_dataset(data: str | Path, out: str | Path, *, copies: int = THESIS_COPIES, seed: int = 0,
                     config: AugmentConfig = AugmentConfig(), preview: bool = False, force: bool = False,
                     workers: int | None = None, progress: bool = True) -> dict:
     """Write the augmented dataset to ``out`` and return a summary (also written as ``augment.json``)."""

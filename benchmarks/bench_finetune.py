@@ -125,7 +125,7 @@ def group_export(real: Path, train_prefix: str, test_prefix: str, out: Path) -> 
 
 def real_mode(argv: list[str]) -> None:
     from detector.finetune.judge import REFERENCE, compare_models, render_set
-    from detector.finetune.pipeline import run_finetune
+    from detector.finetune.pipeline import judging_predictor, run_finetune
     from detector.finetune.recipe import STARTING_MODELS, FinetuneRecipe
 
     parser = argparse.ArgumentParser(prog="bench_finetune.py real")
@@ -171,7 +171,7 @@ def real_mode(argv: list[str]) -> None:
                                           backlight_share=0.5)
                 group_rows += compare_models(models, {"over other rooms, half back-lit": (backdrop_set, "test")},
                                              folder / "backdrops-evaluation", results["evaluate"]["conf"],
-                                             recipe.training_size)
+                                             judging_predictor(recipe))
             rows += [{"group": name, **row} for row in group_rows]
         settings = recipe.settings()
         print(f"\nrecipe: {json.dumps(settings)}")

@@ -21,7 +21,7 @@ from detector.datasets.io import load_dataset
 from detector.outputs import check_output_folder, output_folder
 from detector.datasets.truth import load_camera_poses, load_truth
 from detector.evaluation.counting import best_threshold, confidence_sweep
-from detector.evaluation.predictors import OnnxPredictor
+from detector.evaluation.predictors import RuntimePredictor
 from detector.evaluation.run import evaluate_frames
 from detector.model_files import add_metadata
 
@@ -52,7 +52,7 @@ def crop_sets(data: list[Path], split: str, seed: int, progress: bool = True) ->
 def valid_threshold(model: Path, data: list[Path], progress: bool = True) -> tuple[float, float]:
     """The confidence threshold of the best F1 over every dataset's valid frames (each with its camera pose where
     annotations.json records one, as on the robot), and that F1."""
-    predictor = OnnxPredictor(model)
+    predictor = RuntimePredictor(model)
     images = []
     for root in data:
         dataset = load_dataset(root)

@@ -16,6 +16,7 @@ from export.quantize import quantize_int8
 from export.verify import FP32_TOLERANCE, INT8_TOLERANCE, compare, frontend_predict, median_latency_ms
 from detector.atomic import atomic_path, write_json
 from naoslam.detector import valid_confidence
+from naoslam.shipped import DEFAULT_CONF
 
 #: Frames used to verify an export, and images used to calibrate INT8.
 VERIFY_FRAMES = 16
@@ -36,7 +37,7 @@ class ExportJob:
     int8: bool = False
     calib_data: Path | None = None
     reduce_range: bool = False
-    conf: float = 0.25
+    conf: float = DEFAULT_CONF
     force: bool = False
     dynamic: bool = False
 

@@ -16,8 +16,11 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from naoslam.camera import CameraPose
 from naoslam.detections import Detection
 from naoslam.frames import bgr_frame
+from naoslam.ground import GroundView
+from naoslam.measurement import RangeCalibration
 
 #: OpenCV HSV ranges (H 0..179): (hue ranges, minimum saturation, maximum saturation, minimum value).
 HSV_RANGES: dict[str, tuple[tuple[tuple[int, int], ...], int, int, int]] = {
@@ -63,9 +66,15 @@ class Segment:
 
 
 class ColourFilter:
-    """Finds pink + (blue | yellow | green) + white chains in BGR frames."""
+    """Finds pink + (blue | yellow | green) + white chains in BGR frames (a ``PoleDetector``: every detection has
+    confidence 1 and is placed by its band-dividing point; its ranges come from a calibration's colour law)."""
+
+    matching = "point"
+    stored_conf = None
 
     def __init__(self, min_area_px: int = 12, max_angle_deg: int = 60, angle_step_deg: int = 2):
+        self.conf = 1.0
+        self._calibration: RangeCalibration | None = None
         self.lut = build_lookup()
         self.min_area_px = min_area_px
         self.angles = [0] + [a for step in range(angle_step_deg, max_angle_deg + 1, angle_step_deg) for a in (step, -step)]
@@ -76,9 +85,33 @@ class ColourFilter:
         q = (frame >> self._shift).astype(np.int32)
         return self.lut[(q[..., 0] << (2 * LUT_BITS)) | (q[..., 1] << LUT_BITS) | q[..., 2]]
 
-    def __call__(self, frame: np.ndarray) -> list[Detection]:
+    @property
+    def calibration(self) -> RangeCalibration:
+        """The shipped model's calibration, whose colour law is the colour filter's on the Nao's camera."""
+        if self._calibration is None:
+            # Deferred: reading the shipped model's metadata loads onnxruntime, which the filter alone never needs.
+            from naoslam.pole_model import shipped_calibration
+
+            self._calibration = self.check_calibration(shipped_calibration())
+        return self._calibration
+
+    @property
+    def usable_calibration(self) -> RangeCalibration:
+        return self.calibration
+
+    def check_calibration(self, calibration: RangeCalibration | None) -> RangeCalibration:
+        """``calibration`` when it has a colour law, else a ValueError that says how to get one."""
+        if calibration is None or calibration.colour_law is None:
+            raise ValueError("the colour filter needs a colour law and the calibration has none: leave the "
+                             "calibration out to use the shipped one, or fit one with `poles calibrate` on poles of "
+                             "known range")
+        return calibration
+
+    def __call__(self, frame: np.ndarray, camera_pose: CameraPose | None = None,
+                 view: GroundView | None = None) -> list[Detection]:
         """Every pink + colour + white chain in a BGR frame, as a detection of confidence 1 whose mask is its two
-        bands, whose band centres are given and whose column is their midpoint's."""
+        bands, whose band centres are given and whose column is their midpoint's. The thesis's filter scans the
+        whole frame: the camera's pose and ground view are not used."""
         frame = bgr_frame(frame)
         colours = self.classify(frame)
         pink = (colours & BITS["p"]) > 0

@@ -47,6 +47,8 @@ class CropDetector(PoleModel):
 
     #: Boxes are measured in the frame's own pixels, as labels are.
     calibration_width = None
+    #: No masks: its detections are compared with labels by box IoU.
+    matching = "box"
 
     def __init__(self, model: Path | str, conf: float | None = None, threads: int | None = None,
                  engine: str = "onnxruntime", max_candidates: int = MAX_CANDIDATES, refine: bool = True,

@@ -15,16 +15,17 @@ import cv2
 import numpy as np
 
 from naoslam.camera import CameraPose
+from naoslam.colour_filter import ColourFilter
 from naoslam.detections import Detection, mask_centre_column, rotated_box_of_mask
 from naoslam.engines import OpenVinoForward
 from naoslam.frames import bgr_frame
 from naoslam.ground import GroundView, ground_gate
 from naoslam.landmarks import CLASSES
-from naoslam.measurement import RangeCalibration
 from naoslam.model_info import ModelInfo
 from naoslam.crop_detector import CropDetector, is_crop_model
 from naoslam.pole_model import PoleModel, check_classes, check_options, load_session, valid_confidence
-from naoslam.shipped import DEFAULT_CONF, model_argument, resolve_model, shipped_model
+from naoslam.pole_detector import PoleDetector
+from naoslam.shipped import COLOUR_FILTER, DEFAULT_CONF, model_argument, resolve_model
 
 #: Ultralytics' letterbox fill value.
 PAD_VALUE = 114
@@ -88,6 +89,8 @@ class LandmarkDetector(PoleModel):
     runs one inference thread per core; ``iou`` is the NMS overlap (0-1] above which the lower-scored box of a class
     is dropped.
     """
+
+    matching = "mask"
 
     def __init__(self, model: Path | str = "shipped", conf: float | None = None, iou: float = 0.7,
                  max_det: int = 300, classes: tuple[str, ...] | None = CLASSES, threads: int | None = None,
@@ -228,12 +231,18 @@ class LandmarkDetector(PoleModel):
 
 def load_detector(model: Path | str | None = "shipped", conf: float | None = None, threads: int | None = None,
                   engine: str = "onnxruntime", input_width: int | None = None,
-                  classes: tuple[str, ...] | None = CLASSES) -> "LandmarkDetector | CropDetector":
-    """The detector for a model: ``shipped`` (also for None), ``shipped-int8``, ``shipped-robot`` or an ONNX path. A
-    YOLOv8-seg model gives a ``LandmarkDetector``, a two-stage robot model a ``CropDetector``; both are called the
-    same way (frame and optional camera pose or ground view in, ``Detection`` objects out)."""
-    path = resolve_model("shipped" if model is None else model)
+                  classes: tuple[str, ...] | None = CLASSES) -> PoleDetector:
+    """The detector for a model: ``shipped`` (also for None), ``shipped-int8``, ``shipped-robot``, ``colour-filter``
+    or an ONNX path. A YOLOv8-seg model gives a ``LandmarkDetector``, a two-stage robot model a ``CropDetector``, the
+    name ``colour-filter`` the thesis's ``ColourFilter``; all are called the same way (a ``PoleDetector``: frame and
+    optional camera pose or ground view in, ``Detection`` objects out)."""
     check_options(engine, threads)
+    if model == COLOUR_FILTER:
+        if input_width is not None:
+            raise ValueError(f"the colour filter reads the frame's own pixels - leave out the input width "
+                             f"({input_width})")
+        return ColourFilter()
+    path = resolve_model("shipped" if model is None else model)
     session = load_session(path, threads)
     info = ModelInfo.from_metadata(session.get_modelmeta().custom_metadata_map, path)
     if not is_crop_model(info):
@@ -246,12 +255,6 @@ def load_detector(model: Path | str | None = "shipped", conf: float | None = Non
                             engine=engine, session=session)
     check_classes(detector, classes)
     return detector
-
-
-def shipped_calibration() -> RangeCalibration | None:
-    """The range calibration stored in the shipped model. Its colour law is the colour filter's on the Nao's camera,
-    the same whatever model runs beside it, so the colour filter ranges with it when it is given no calibration."""
-    return LandmarkDetector(shipped_model(int8=True), threads=1).stored_calibration
 
 
 def _shifted(detection: Detection, rows: int) -> Detection:

@@ -61,9 +61,9 @@ class SlamConfig:
 
     def __post_init__(self) -> None:
         if self.min_views < 1:
-            raise ValueError(f"--min-views {self.min_views} must be at least 1")
+            raise ValueError(f"min_views {self.min_views} must be at least 1")
         if not 0 <= self.min_separation_m < math.inf:
-            raise ValueError(f"--min-separation {self.min_separation_m} must be a distance in metres, 0 or more")
+            raise ValueError(f"min_separation_m {self.min_separation_m} must be a distance in metres, 0 or more")
         observation.check_gate(self.gate)
         if self.linearisation not in LINEARISATIONS:
             raise ValueError(f"linearisation {self.linearisation!r} is not one of {', '.join(LINEARISATIONS)}")

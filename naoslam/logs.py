@@ -55,7 +55,7 @@ def load_utias(folder: Path, range_std: float = 0.1, bearing_std: float = math.r
     landmark measurements (measurements of other robots' barcodes are left out). No robot truth is needed:
     the map is scored after a rigid alignment to the landmark ground truth."""
     if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0):
-        raise ValueError(f"--duration {duration_s:g} must be a positive number of seconds (None: the whole log)")
+        raise ValueError(f"duration_s {duration_s:g} must be a positive number of seconds (None: the whole log)")
     folder = Path(folder)
     missing = [name for name in UTIAS_FILES if not (folder / name).is_file()]
     if missing:

@@ -216,7 +216,8 @@ class MeasurementModel:
     def measure(self, detections, image_width: int, camera_pose: CameraPose | None = None,
                 image_height: int | None = None, view: GroundView | None = None) -> list[Measurement]:
         """Measurements for detections (``naoslam.detections.Detection``) above the confidence threshold; a
-        ``camera_pose`` needs the ``image_height`` too, or pass the frame's ground ``view`` already built."""
+        ``camera_pose`` needs the ``image_height`` too, or pass the frame's ground ``view`` already built. The colour
+        filter's detections (with band centres) are ranged by the calibration's colour law from their band spacing."""
         if view is None and camera_pose is not None:
             if image_height is None:
                 raise ValueError("a camera pose needs the image height to place the principal point")
@@ -224,6 +225,9 @@ class MeasurementModel:
         out = []
         for d in detections:
             if d.confidence < self.min_confidence or d.rotated_box is None:
+                continue
+            if d.band_centres is not None:
+                out.append(self._colour_measurement(d, image_width))
                 continue
             bearing = bearing_of_column(d.centre_column, image_width, self.calibration.hfov_deg, self.linear_bearing)
             width, height = d.rotated_box.width, d.rotated_box.height
@@ -244,3 +248,10 @@ class MeasurementModel:
                                    self.calibration.bearing_std_rad, used, d))
         return out
 
+    def _colour_measurement(self, detection, image_width: int) -> Measurement:
+        """The colour filter's measurement: range from the band spacing, bearing from the band-dividing column."""
+        column = detection.centre_column
+        range_m, range_std = self.calibration.colour_range(detection.band_distance_px, image_width, column=column)
+        bearing = bearing_of_column(column, image_width, self.calibration.hfov_deg, self.linear_bearing)
+        return Measurement(range_m, bearing, detection.name, detection.confidence, range_std,
+                           self.calibration.bearing_std_rad, "colour filter", detection)

@@ -14,7 +14,7 @@ CHI2_2DOF_99 = 9.21
 def check_gate(gate: float | None) -> None:
     """Refuse a validation gate that would turn every measurement away (None: no gate)."""
     if gate is not None and not 0 < gate < math.inf:
-        raise ValueError(f"--gate {gate} must be a positive chi-square bound (e.g. 9.21)")
+        raise ValueError(f"gate {gate} must be a positive chi-square bound (e.g. 9.21)")
 
 
 def expected(pose: np.ndarray, landmark: np.ndarray) -> np.ndarray:

@@ -12,7 +12,7 @@ from naoslam.camera import NAO_HFOV_DEG, CameraPose, PinholeCamera
 from naoslam.ground import GroundView
 from naoslam.measurement import RangeCalibration
 from naoslam.model_info import ModelInfo
-from naoslam.shipped import OPERATING_CONF_KEY, model_argument
+from naoslam.shipped import OPERATING_CONF_KEY, model_argument, shipped_model
 
 
 def valid_confidence(conf: float) -> float:
@@ -57,6 +57,12 @@ def check_classes(model: "PoleModel", classes: tuple[str, ...] | None) -> None:
     if classes is not None and tuple(model.info.classes) != tuple(classes):
         raise ValueError(f"{model.path}: the model's classes {list(model.info.classes)} are not the pole classes "
                          f"{list(classes)} - train on a dataset whose data.yaml names them in this order")
+
+
+def shipped_calibration() -> RangeCalibration | None:
+    """The range calibration stored in the shipped model. Its colour law is the colour filter's on the Nao's camera,
+    the same whatever model runs beside it, so the colour filter ranges with it when it is given no calibration."""
+    return PoleModel(shipped_model(int8=True), threads=1).stored_calibration
 
 
 class PoleModel:

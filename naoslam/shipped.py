@@ -6,7 +6,8 @@ confidence threshold it runs at (``operating_conf``).
 - the robot model (``shipped-robot``): the two-stage front end's crop network (pink candidates at full resolution,
   then a small network per candidate; ``naoslam.crop_detector``), for the Nao's Atom.
 
-``load_detector("shipped")`` opens the accurate one, ``load_detector("shipped-robot")`` the robot one.
+``load_detector("shipped")`` opens the accurate one, ``load_detector("shipped-robot")`` the robot one,
+``load_detector("colour-filter")`` the thesis's colour filter.
 """
 from __future__ import annotations
 
@@ -25,6 +26,10 @@ DEFAULT_CONF = 0.25
 #: Names that stand for the shipped models wherever a model path is asked for, and their files.
 SHIPPED_FILES = {"shipped": f"{SHIPPED_NAME}.onnx", "shipped-int8": f"{SHIPPED_NAME}-int8.onnx",
                  "shipped-robot": f"{ROBOT_NAME}.onnx"}
+#: The name that stands for the colour filter wherever a model is asked for.
+COLOUR_FILTER = "colour-filter"
+
+
 def shipped_path(int8: bool = False) -> Path:
     """Where the accurate model (FP32, or the INT8 copy) lives in the package."""
     return MODELS_DIR / SHIPPED_FILES["shipped-int8" if int8 else "shipped"]

@@ -69,16 +69,16 @@ class SimConfig:
             raise ValueError(f"path {self.path!r} is not one of {', '.join(PATHS)}")
         for name in ("false_positive_rate", "confusion_rate", "miss_rate"):
             if not 0.0 <= getattr(self, name) <= 1.0:
-                raise ValueError(f"--{name.replace('_', '-')} {getattr(self, name)} must lie in 0..1")
-        for flag, value in (("--duration", self.duration_s), ("--odometry-bias", self.stride_scale)):
+                raise ValueError(f"{name} {getattr(self, name)} must lie in 0..1")
+        for name, value in (("duration_s", self.duration_s), ("stride_scale", self.stride_scale)):
             if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{flag} {value:g} must be a positive finite number")
+                raise ValueError(f"{name} {value:g} must be a positive finite number")
         if self.lookalikes < 0:
-            raise ValueError(f"--lookalikes {self.lookalikes} must be 0 or more")
+            raise ValueError(f"lookalikes {self.lookalikes} must be 0 or more")
         if self.front_end_hz is not None:
             every = self.frame_hz / self.front_end_hz if self.front_end_hz > 0 else 0.0
             if every < 1 or abs(every - round(every)) > 1e-6:
-                raise ValueError(f"--frame-rate {self.front_end_hz:g}: give the camera's {self.frame_hz:g} Hz divided "
+                raise ValueError(f"front_end_hz {self.front_end_hz:g}: give the camera's {self.frame_hz:g} Hz divided "
                                  f"by a whole number (e.g. {self.frame_hz / 2:g}, {self.frame_hz / 4:g})")
 
     @property

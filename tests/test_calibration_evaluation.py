@@ -21,7 +21,7 @@ from detector.datasets.truth import load_truth
 from detector.evaluation.by_width import label_width_px, recall_by_width, width_bin_names
 from detector.evaluation.counting import (best_threshold, confusion_matrix, evaluate_image, outcome, precision_recall,
                                           totals)
-from detector.evaluation.predictors import ColourFilterPredictor, OnnxPredictor
+from detector.evaluation.predictors import RuntimePredictor
 from detector.evaluation.run import evaluate
 from detector.synth.generate import SynthJob, generate_dataset
 from detector.synth.render import render_scene
@@ -279,10 +279,10 @@ def test_calibrate_command_writes_json_plot_and_embeds_in_every_model_named(cali
     assert f"note: {int8}, its INT8 copy, was not given this calibration: add --embed {int8}" in capsys.readouterr().out
     assert cv2.imread(str(plot)) is not None
     calibration = load_calibration(out)
-    assert OnnxPredictor(model).calibration == calibration and OnnxPredictor(int8).calibration is None
+    assert RuntimePredictor(model).calibration == calibration and RuntimePredictor(int8).calibration is None
     assert main(argv + ["--embed", str(model), "--embed", str(int8)]) == 0
     assert "note:" not in capsys.readouterr().out
-    assert OnnxPredictor(model).calibration == OnnxPredictor(int8).calibration == load_calibration(out)
+    assert RuntimePredictor(model).calibration == RuntimePredictor(int8).calibration == load_calibration(out)
     assert main(["calibrate", "--data", str(calibration_shots), "--out", str(out)]) == 2  # exists, no --force
 
 
@@ -422,7 +422,7 @@ def test_evaluate_keeps_a_used_out_and_force_replaces_it_whole(synth_dataset, tm
 
 
 def test_evaluate_writes_metrics_plots_and_overlays(synth_dataset, tmp_path):
-    metrics = evaluate(ColourFilterPredictor(), synth_dataset, tmp_path / "eval", progress=False)
+    metrics = evaluate(RuntimePredictor("colour-filter"), synth_dataset, tmp_path / "eval", progress=False)
     saved = json.loads((tmp_path / "eval" / "metrics.json").read_text())
     for key in ("precision", "recall", "mean_iou", "tp", "fp", "fn", "tn", "images", "sweep", "bearing_error"):
         assert key in saved

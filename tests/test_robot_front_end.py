@@ -128,6 +128,22 @@ def test_the_crop_network_trains_and_its_export_loads_as_the_two_stage_front_end
         LandmarkDetector(path)
 
 
+@pytest.mark.parametrize("keep", ["best", "last"])
+def test_the_crop_network_keeps_the_best_epoch_or_the_last_as_asked(tiny_crop_model, keep):
+    """A fine-tune's valid split of a frame or two scores every epoch alike: ``best`` would keep the first."""
+    from detector.crops.network import PoleCropNet
+    from detector.crops.settings import CropTrainSettings
+    from detector.crops.train import train_crop_network, validate
+
+    _, crops, _ = tiny_crop_model
+    network, history = train_crop_network(crops, crops, CropTrainSettings(epochs=3, batch=64, threads=1, keep=keep),
+                                          PoleCropNet(CROP_WH), log=lambda line: None)
+    kept = history[-1] if keep == "last" else max(history, key=lambda epoch: epoch.score)
+    assert validate(network, crops) == pytest.approx((kept.pole_recall, kept.false_pole_rate, kept.box_iou))
+    with pytest.raises(ValueError, match="give best or last"):
+        CropTrainSettings(keep="first")
+
+
 def test_the_two_stage_front_end_runs_without_the_training_side(tiny_crop_model):
     path, _, _ = tiny_crop_model
     assert_runs_without_training_side(

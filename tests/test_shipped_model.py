@@ -249,10 +249,10 @@ def test_the_colour_filter_ranges_with_the_shipped_colour_law_when_given_no_cali
     """`poles slam --frontend colour-filter` and `poles evaluate --model colour-filter` need no calibration file:
     the shipped model's colour law is the colour filter's on the Nao, fitted on the band distances the filter itself
     reads and taken to the optical axis, so a pole ahead and one at 20 deg both range right."""
-    from detector.slam.sequences import FrontEnd
+    from detector.slam.sequences import FrontEndSpec
 
     frame, _ = rendered_pole(code, range_m, angle_deg, seed=5)
-    (measurement,) = [m for m in FrontEnd("colour-filter").measurer()(frame) if m.signature == code]
+    (measurement,) = [m for m in FrontEndSpec("colour-filter").measurer()(frame) if m.signature == code]
     assert measurement.range_m == pytest.approx(range_m, rel=0.025)
     assert measurement.range_std == pytest.approx(measurement.range_m * LandmarkDetector().calibration.colour_law
                                                   .relative_std)

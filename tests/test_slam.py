@@ -284,7 +284,7 @@ def test_a_slower_front_end_sees_every_nth_frame_of_the_same_walk():
     framed = [i for i, step in enumerate(full.steps) if step.measurements is not None]
     assert [i for i, step in enumerate(slow.steps) if step.measurements is not None] == framed[::4]
     assert all(slow.steps[i].measurements == full.steps[i].measurements for i in framed[::4])
-    with pytest.raises(ValueError, match="--frame-rate 2: give the camera's 5 Hz divided by a whole number"):
+    with pytest.raises(ValueError, match="front_end_hz 2: give the camera's 5 Hz divided by a whole number"):
         SimConfig(front_end_hz=2.0)
 
 
@@ -462,9 +462,9 @@ def test_a_measurement_that_is_not_finite_or_has_no_range_is_refused(values):
         Measurement(range_m, bearing, "bp", 0.9, range_std, bearing_std)
 
 
-@pytest.mark.parametrize("kwargs, message", [({"duration_s": float("inf")}, "--duration inf must be a positive finite"),
-                                             ({"stride_scale": float("nan")}, "--odometry-bias nan must be a positive"),
-                                             ({"lookalikes": -1}, "--lookalikes -1 must be 0 or more")])
+@pytest.mark.parametrize("kwargs, message", [({"duration_s": float("inf")}, "duration_s inf must be a positive finite"),
+                                             ({"stride_scale": float("nan")}, "stride_scale nan must be a positive"),
+                                             ({"lookalikes": -1}, "lookalikes -1 must be 0 or more")])
 def test_a_walk_names_the_setting_it_cannot_simulate(kwargs, message):
     """An infinite walk ended in an OverflowError, an odometry bias of nan in a complaint about the first control."""
     with pytest.raises(ValueError, match=message):

@@ -9,14 +9,14 @@ import pytest
 
 from detector.cli import main
 from detector.slam.comparison import BACKENDS, REFERENCE_ROW
-from detector.slam.sequences import FrontEnd, recorded_sequence
+from detector.slam.sequences import FrontEndSpec, recorded_sequence
 from naoslam.landmarks import CLASSES
 from naoslam.measurement import PowerLaw, RangeCalibration
 from naoslam.runner import run_slam
 
 
 #: The colour filter with a colour law of its own, as a recording's front end.
-COLOUR_FILTER = FrontEnd("colour-filter", RangeCalibration(PowerLaw(50, -1), PowerLaw(220, -1),
+COLOUR_FILTER = FrontEndSpec("colour-filter", RangeCalibration(PowerLaw(50, -1), PowerLaw(220, -1),
                                                            colour_law=PowerLaw(6.2, -1.0, 0.03)))
 
 def test_slam_command_writes_metrics_map_path_plots_and_comparison(tmp_path, capsys):
@@ -154,16 +154,16 @@ def test_a_recording_hands_each_frame_the_camera_pose_of_the_nearest_odometry_ro
     odometry.write_text("t,x,y,theta,camera_height,camera_pitch,camera_roll\n0.0,0,0,0,0.50,0.10,0.00\n"
                         "0.4,0.05,0,0,0.51,0.12,0.01\n0.8,0.1,0,0.02,0.52,0.14,0.02\n1.2,0.15,0,0.04,0.53,0.16,0.03\n")
     seen = []
-    monkeypatch.setattr(FrontEnd, "measurer", lambda self: lambda frame, pose=None: seen.append(pose) or [])
-    recorded_sequence(frames, odometry, FrontEnd("shipped"), time_offset_s=0.3)
+    monkeypatch.setattr(FrontEndSpec, "measurer", lambda self: lambda frame, pose=None: seen.append(pose) or [])
+    recorded_sequence(frames, odometry, FrontEndSpec("shipped"), time_offset_s=0.3)
     assert [(p.z, p.pitch, p.roll) for p in seen] == [(0.51, 0.12, 0.01), (0.52, 0.14, 0.02), (0.53, 0.16, 0.03)]
     seen.clear()
-    recorded_sequence(frames, odometry, FrontEnd("shipped"), time_offset_s=0.3, camera_pose=False)
+    recorded_sequence(frames, odometry, FrontEndSpec("shipped"), time_offset_s=0.3, camera_pose=False)
     assert seen == [None, None, None]
 
     odometry.write_text(odometry.read_text().replace("0.8,0.1,0,0.02,0.52,0.14,0.02", "0.8,0.1,0,0.02,,,"))
     seen.clear()
-    recorded_sequence(frames, odometry, FrontEnd("shipped"), time_offset_s=0.3)
+    recorded_sequence(frames, odometry, FrontEndSpec("shipped"), time_offset_s=0.3)
     assert seen[1] is None and [(p.z, p.pitch, p.roll) for p in (seen[0], seen[2])] == [(0.51, 0.12, 0.01),
                                                                                        (0.53, 0.16, 0.03)]
 

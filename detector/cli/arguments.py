@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 
@@ -114,3 +115,16 @@ def one_dataset(args: argparse.Namespace) -> Path:
     if len(given) != 1:
         raise ValueError("give the dataset once, as DATA or as --data DATA")
     return given.pop()
+
+
+@contextmanager
+def flags_for(parameters: dict[str, str]) -> Iterator[None]:
+    """Put the command's flag beside a runtime error that names one of ``parameters`` (parameter -> flag) first:
+    naoslam's messages name its own parameters (``min_views 0 must be at least 1``), the user typed the flag."""
+    try:
+        yield
+    except ValueError as error:
+        parameter = str(error).split(" ", 1)[0]
+        if parameter in parameters:
+            raise ValueError(f"{parameters[parameter]}: {error}") from None
+        raise

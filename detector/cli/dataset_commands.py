@@ -5,9 +5,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from augment.config import OPERATIONS, AugmentConfig
+from augment.config import OPERATIONS, THESIS_COPIES, AugmentConfig
 from detector.atomic import write_json
 from detector.cli.arguments import add_dataset_argument, existing, finite_number, image_size, whole_number
+from detector.datasets.split import THESIS_RATIOS
 from detector.synth.scene import SceneConfig
 from naoslam.camera import NAO_HFOV_DEG
 from naoslam.sim import PATHS
@@ -78,7 +79,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     augment = sub.add_parser("augment", help="add N augmented copies of every training image (labels kept exact)")
     add_dataset_argument(augment, "input dataset (never written)")
     augment.add_argument("--out", type=Path, required=True, help="output dataset folder")
-    augment.add_argument("--copies", type=int, default=7, help="copies per training image (thesis: 7)")
+    augment.add_argument("--copies", type=int, default=THESIS_COPIES,
+                         help=f"copies per training image (default, as the thesis: {THESIS_COPIES})")
     augment.add_argument("--seed", type=whole_number(0), default=0)
     augment.add_argument("--ops", help=f"comma-separated operations to draw from (default all: {','.join(OPERATIONS)})")
     augment.add_argument("--config", type=Path,
@@ -95,9 +97,10 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     split = sub.add_parser("split", help="re-split a dataset, stratified so every class reaches every split")
     add_dataset_argument(split, "dataset folder to re-split (never written)")
     split.add_argument("--out", type=Path, required=True)
-    split.add_argument("--ratios", type=finite_number, nargs=3, default=(0.7, 0.2, 0.1),
+    split.add_argument("--ratios", type=finite_number, nargs=3, default=THESIS_RATIOS,
                        metavar=("TRAIN", "TEST", "VALID"),
-                       help="fractions for train, test and valid (thesis: 0.7 0.2 0.1)")
+                       help="fractions for train, test and valid (default, as the thesis: "
+                            f"{' '.join(f'{r:g}' for r in THESIS_RATIOS)})")
     split.add_argument("--seed", type=whole_number(0), default=0)
     split.add_argument("--force", action="store_true")
     split.set_defaults(run=_split)

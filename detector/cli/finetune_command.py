@@ -43,7 +43,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                           help="the accurate model's first layers kept as shipped (default: its backbone, "
                                f"{ACCURATE.backbone_layers} layers; 0: none)")
     finetune.add_argument("--lr0", type=positive_number, default=DEFAULTS.lr0,
-                          help=f"AdamW learning rate (default {DEFAULTS.lr0:g})")
+                          help=f"AdamW learning rate (default {ACCURATE.lr0:g} for the accurate model, "
+                               f"{ROBOT.lr0:g} for the robot one)")
     finetune.add_argument("--copies", type=whole_number(0), default=DEFAULTS.copies,
                           help=f"augmented copies of each of your training frames (default {DEFAULTS.copies}, "
                                "the thesis's)")

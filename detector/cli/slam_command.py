@@ -6,14 +6,23 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from detector.cli.arguments import (add_input_width_argument, confidence, existing, finite_number, number_list,
-                                    positive_number, whole_number)
+from detector.cli.arguments import (add_input_width_argument, confidence, existing, finite_number, flags_for,
+                                    number_list, positive_number, whole_number)
+from naoslam.ekf_slam import SlamConfig
+from naoslam.shipped import COLOUR_FILTER
 from naoslam.sim import PATHS, SimConfig
 
-if TYPE_CHECKING:  # the filters load when a run needs them, not with every `poles` command
-    from detector.slam.sequences import FrontEnd
-    from naoslam.ekf_slam import SlamConfig
+if TYPE_CHECKING:  # the front ends and the runner load when a run needs them, not with every `poles` command
+    from detector.slam.sequences import FrontEndSpec
     from naoslam.runner import LocalisationConfig, Sequence
+
+#: The defaults every flag below shows and falls back to: the runtime's own.
+SLAM, SIM = SlamConfig(), SimConfig()
+#: The flag of each runtime parameter, for the runtime's messages (``flags_for``).
+FLAGS = {"min_views": "--min-views", "min_separation_m": "--min-separation", "gate": "--gate",
+         "duration_s": "--duration", "stride_scale": "--odometry-bias", "lookalikes": "--lookalikes",
+         "false_positive_rate": "--false-positive-rate", "confusion_rate": "--confusion-rate",
+         "front_end_hz": "--frame-rate"}
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
@@ -44,28 +53,30 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                            "landmark's identity (known correspondences; default for --utias, whose barcodes are)")
     slam.add_argument("--no-self-calibration", action="store_true",
                       help="do not estimate the odometry's stride and turn scales")
-    slam.add_argument("--min-views", type=int, default=3, help="agreeing sightings before a landmark enters the map")
-    slam.add_argument("--min-separation", type=finite_number, default=0.5, metavar="METRES",
+    slam.add_argument("--min-views", type=int, default=SLAM.min_views,
+                      help=f"agreeing sightings before a landmark enters the map (default {SLAM.min_views})")
+    slam.add_argument("--min-separation", type=finite_number, default=SLAM.min_separation_m, metavar="METRES",
                       help="no landmark enters the map this close to a mapped one: two poles never stand that close "
-                           "(default 0.5; 0: off)")
+                           f"(default {SLAM.min_separation_m:g}; 0: off)")
     slam.add_argument("--outlier-filter", action="store_true", help="drop measurements 0.4 m / pi/3 off prediction")
-    slam.add_argument("--gate", type=finite_number, default=9.21,
-                      help="Mahalanobis gate on every update (chi-square, 2 dof; default 9.21 = 99 %%)")
+    slam.add_argument("--gate", type=finite_number, default=SLAM.gate,
+                      help=f"Mahalanobis gate on every update (chi-square, 2 dof; default {SLAM.gate:g} = 99 %%)")
     slam.add_argument("--no-gate", action="store_true", help="accept every associated measurement (the thesis)")
     slam.add_argument("--duration", type=positive_number,
-                      help="seconds of the walk or UTIAS log (sim default 90: once round and one more side; a log: "
-                           "all of it)")
-    slam.add_argument("--false-positive-rate", type=finite_number, default=0.05,
-                      help="sim: share of frames with a one-off false positive")
-    slam.add_argument("--confusion-rate", type=finite_number, default=0.0,
-                      help="sim: share of sightings given another class")
-    slam.add_argument("--lookalikes", type=int, default=0,
+                      help=f"seconds of the walk or UTIAS log (sim default {SIM.duration_s:g}: once round and one "
+                           "more side; a log: all of it)")
+    slam.add_argument("--false-positive-rate", type=finite_number, default=SIM.false_positive_rate,
+                      help=f"sim: share of frames with a one-off false positive (default {SIM.false_positive_rate:g})")
+    slam.add_argument("--confusion-rate", type=finite_number, default=SIM.confusion_rate,
+                      help=f"sim: share of sightings given another class (default {SIM.confusion_rate:g})")
+    slam.add_argument("--lookalikes", type=int, default=SIM.lookalikes,
                       help="sim: look-alike poles of a wrong class standing in the walk's area")
     slam.add_argument("--frame-rate", type=finite_number,
                       help=f"sim: frames per second the front end gets through, of the camera's {SimConfig.frame_hz:g} "
                            "(default all; e.g. 2.5 or 1.25): what a slower CPU affords, on the same walk")
-    slam.add_argument("--odometry-bias", type=finite_number, default=1.25,
-                      help="sim: reported stride per true stride (default 1.25: the Nao over-reports)")
+    slam.add_argument("--odometry-bias", type=finite_number, default=SIM.stride_scale,
+                      help=f"sim: reported stride per true stride (default {SIM.stride_scale:g}: the Nao "
+                           "over-reports)")
     slam.add_argument("--map", metavar="CSV",
                       help="localise on a known map instead of building one: a CSV class,x,y (metres, the field's "
                            "frame) of where the poles stand, or `true` for a simulated walk's own; EKF localisation "
@@ -108,17 +119,18 @@ def _slam(args: argparse.Namespace) -> int:
     from detector.slam.comparison import BACKENDS, compare_backends, print_comparison
     from detector.slam.outputs import write_outputs
     from detector.slam.reference import smooth
-    from detector.slam.sequences import FrontEnd
+    from detector.slam.sequences import FrontEndSpec
     from detector.atomic import write_json
     from naoslam.runner import run_slam
 
     calibration = load_calibration(args.calibration) if args.calibration else None
     frontend = args.frontend or ("shipped" if args.frames else None)
-    if args.imgsz is not None and frontend in (None, "colour-filter"):
+    if args.imgsz is not None and frontend in (None, COLOUR_FILTER):
         raise ValueError("--imgsz is a model's input width: give --frontend model.onnx or shipped")
-    front_end = FrontEnd(frontend, calibration, args.conf, args.imgsz) if frontend else None
+    front_end = FrontEndSpec(frontend, calibration, args.conf, args.imgsz) if frontend else None
     make = _sequence_maker(args, front_end)
-    config = _filter_config(args)
+    with flags_for(FLAGS):
+        config = _filter_config(args)
     map_file = Path(args.map) if args.map and args.map != "true" else None
     inputs = (args.utias, args.frames, args.odometry, args.calibration, Path(frontend) if frontend else None, map_file)
     start_std = (args.start_std[0], args.start_std[0], args.start_std[1])
@@ -139,20 +151,24 @@ def _slam(args: argparse.Namespace) -> int:
     return 0
 
 
-def _sequence_maker(args: argparse.Namespace, front_end: FrontEnd | None) -> Callable[[int], Sequence]:
+def _sequence_maker(args: argparse.Namespace, front_end: FrontEndSpec | None) -> Callable[[int], Sequence]:
     """What the filter runs on, per seed: a simulated walk, a UTIAS log or a recording (the same for every seed)."""
     from detector.slam.sequences import recorded_sequence, sim_sequence, utias_sequence
 
     if args.sim:
         def make(seed: int) -> Sequence:
-            sim = SimConfig(path=args.sim, duration_s=90.0 if args.duration is None else args.duration, seed=seed,
-                            false_positive_rate=args.false_positive_rate, confusion_rate=args.confusion_rate,
-                            lookalikes=args.lookalikes, stride_scale=args.odometry_bias,
-                            front_end_hz=args.frame_rate)
+            with flags_for(FLAGS):
+                sim = SimConfig(path=args.sim, duration_s=SIM.duration_s if args.duration is None else args.duration,
+                                seed=seed, false_positive_rate=args.false_positive_rate,
+                                confusion_rate=args.confusion_rate, lookalikes=args.lookalikes,
+                                stride_scale=args.odometry_bias, front_end_hz=args.frame_rate)
             return sim_sequence(sim, front_end, camera_pose=not args.no_camera_pose)
         return make
     if args.utias:
-        return lambda seed: utias_sequence(args.utias, args.duration)
+        def make_utias(seed: int) -> Sequence:
+            with flags_for(FLAGS):
+                return utias_sequence(args.utias, args.duration)
+        return make_utias
     if not args.odometry:
         raise ValueError("--frames needs --odometry: a CSV t,x,y,theta of the same recording")
     if args.duration is not None:
@@ -165,7 +181,6 @@ def _sequence_maker(args: argparse.Namespace, front_end: FrontEnd | None) -> Cal
 def _filter_config(args: argparse.Namespace) -> SlamConfig | LocalisationConfig:
     """The back end the flags ask for: EKF or EIF localisation on a known map (``--map``), else EKF SLAM."""
     from detector.slam.sequences import read_pole_map
-    from naoslam.ekf_slam import SlamConfig
     from naoslam.runner import LocalisationConfig
 
     gate = None if args.no_gate else args.gate

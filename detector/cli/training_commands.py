@@ -10,6 +10,7 @@ from detector.cli.arguments import (add_dataset_argument, add_input_width_argume
 from detector.training import defaults
 from detector.training.openmp_wait import choose_wait_policy
 from detector.model_files import run_checkpoint
+from naoslam.shipped import DEFAULT_CONF
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
@@ -68,7 +69,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     export.add_argument("--int8", action="store_true", help="also write a static INT8 copy")
     export.add_argument("--calib-data", type=Path, help="dataset whose training images calibrate INT8 (default --data)")
     export.add_argument("--reduce-range", action="store_true", help="7-bit INT8 weights, for x86 CPUs without VNNI")
-    export.add_argument("--conf", type=confidence, default=0.25, help="confidence threshold used when verifying")
+    export.add_argument("--conf", type=confidence, default=DEFAULT_CONF,
+                        help=f"confidence threshold used when verifying (default {DEFAULT_CONF})")
     export.add_argument("--dynamic", action="store_true",
                         help="any input size (multiples of 32), so the front end can run on the band below the "
                              "horizon alone when it knows the camera pose")

@@ -17,6 +17,9 @@ class CropTrainSettings:
     threads: int = 2
     #: Stop after this many minutes of training even if epochs are left (None: run every epoch).
     minutes: float | None = None
+    #: Which epoch's weights are kept: ``best`` on the valid crops, or ``last`` (a valid split of a frame or two
+    #: scores every epoch alike, and ``best`` would then keep the first).
+    keep: str = "best"
 
     def __post_init__(self) -> None:
         if self.epochs < 1 or self.batch < 1 or self.threads < 1:
@@ -24,5 +27,7 @@ class CropTrainSettings:
         if not (self.learning_rate > 0 and self.weight_decay >= 0):
             raise ValueError(f"learning rate {self.learning_rate} must be above 0, weight decay {self.weight_decay} "
                              "not below")
+        if self.keep not in ("best", "last"):
+            raise ValueError(f"keep {self.keep!r}: give best or last")
         if self.minutes is not None and not self.minutes > 0:
             raise ValueError(f"minutes {self.minutes}: give a positive time, or None for every epoch")

@@ -115,8 +115,8 @@ def validate(network: PoleCropNet, crops: CropSet, conf: float = 0.5) -> tuple[f
 
 def train_crop_network(train: CropSet, valid: CropSet, settings: CropTrainSettings = CropTrainSettings(),
                        start: PoleCropNet | None = None, log=print) -> tuple[PoleCropNet, list[EpochResult]]:
-    """Train (or go on training ``start``) on ``train``; the best epoch on ``valid`` is returned with every epoch's
-    figures."""
+    """Train (or go on training ``start``) on ``train``; the best epoch on ``valid`` (or the last, as ``settings``
+    says) is returned with every epoch's figures."""
     torch.manual_seed(settings.seed)
     torch.set_num_threads(settings.threads)
     network = start if start is not None else PoleCropNet()
@@ -144,7 +144,7 @@ def train_crop_network(train: CropSet, valid: CropSet, settings: CropTrainSettin
         history.append(result)
         log(f"epoch {epoch}/{settings.epochs}: loss {result.loss:.4f}, valid pole recall {recall:.3f}, "
             f"false poles {false_rate:.4f}, box IoU {iou:.3f} ({result.seconds:.0f} s)")
-        if result.score > best_score:
+        if result.score > best_score or settings.keep == "last":
             best_score, best_state = result.score, {k: v.clone() for k, v in network.state_dict().items()}
         if settings.minutes is not None and time.perf_counter() - started > 60 * settings.minutes:
             log(f"stopped after {epoch} epochs: the {settings.minutes:g} minutes are spent")

@@ -15,6 +15,9 @@ from detector.datasets.truth import read_annotations
 #: The order of ``--ratios``: train, test, valid (as the thesis lists them).
 RATIO_ORDER = ("train", "test", "valid")
 
+#: Train, test and valid fractions, as the thesis split its data.
+THESIS_RATIOS = (0.7, 0.2, 0.1)
+
 
 def stratified_assignment(samples: list[Sample], ratios: dict[str, float], seed: int) -> list[str]:
     """A split per sample, split sizes as the ratios say; each class spread over the splits in the same ratios.
@@ -49,7 +52,7 @@ def stratified_assignment(samples: list[Sample], ratios: dict[str, float], seed:
     return result
 
 
-def split_dataset(data: str | Path, out: str | Path, ratios: tuple[float, float, float] = (0.7, 0.2, 0.1),
+def split_dataset(data: str | Path, out: str | Path, ratios: tuple[float, float, float] = THESIS_RATIOS,
                   seed: int = 0, force: bool = False) -> dict[str, int]:
     """Write a copy of every image of ``data`` into new splits; returns images per split. An ``annotations.json`` of
     ``poles synth`` (true ranges, camera poses) goes along, each image's entry naming its new split."""

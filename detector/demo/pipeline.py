@@ -12,11 +12,12 @@ from pathlib import Path
 
 from rich.table import Table
 
+from augment.config import THESIS_COPIES
 from detector.console import make_console
 from detector.stages import StageFailed, StageLedger, file_fingerprint, stage_key
 from detector.model_files import SHIPPED_WEIGHTS
 from detector.training.starting_point import starting_point
-from naoslam.shipped import shipped_path
+from naoslam.shipped import COLOUR_FILTER, shipped_path
 
 console = make_console()
 
@@ -50,7 +51,7 @@ class Budget:
 
 
 BUDGETS = {
-    "fast": Budget("fast", images=300, copies=7, models=("yolov8n-seg",), imgsz=640, epochs=100, train_hours=0.17,
+    "fast": Budget("fast", images=300, copies=THESIS_COPIES, models=("yolov8n-seg",), imgsz=640, epochs=100, train_hours=0.17,
                    batch=8, export_hw=(480, 640), calibration_shots=90, walk_seconds=90.0, compare_seeds=3,
                    conf=None, rationale=(
                        "About 13 minutes on two cores, 10 of them training. The run fine-tunes the shipped "
@@ -63,7 +64,7 @@ BUDGETS = {
                        "choose one on. "
                        "YOLOv8s/m from scratch need hours to days here (--budget full).")),
     # The thesis's settings: YOLOv8s and YOLOv8m at 640 px for 200 epochs (days on a laptop CPU).
-    "full": Budget("full", images=1000, copies=7, models=("yolov8s-seg", "yolov8m-seg"), imgsz=640, epochs=200,
+    "full": Budget("full", images=1000, copies=THESIS_COPIES, models=("yolov8s-seg", "yolov8m-seg"), imgsz=640, epochs=200,
                    train_hours=None, batch=8, export_hw=(480, 640), calibration_shots=270, walk_seconds=90.0,
                    compare_seeds=10, conf=0.85, rationale=(
                        "The 2024 thesis's settings: YOLOv8s and YOLOv8m at 640 px for 200 epochs, detections used "
@@ -247,7 +248,7 @@ def _evaluate(folder: Path, models: list[Path], data: Path, calibration_json: Pa
         reference = make_predictor("shipped")  # with its own calibration: the demo's was fitted on the new masks
         reference.name = REFERENCE
         reference_conf = reference.operating_conf or conf
-        for predictor in [*predictors, reference, make_predictor("colour-filter", calibration=calibration)]:
+        for predictor in [*predictors, reference, make_predictor(COLOUR_FILTER, calibration=calibration)]:
             metrics = evaluate(predictor, data, tmp / predictor.name, "test",
                                reference_conf if predictor is reference else conf)
             per_image[predictor.name] = metrics["per_image"]
@@ -275,7 +276,7 @@ def _slam(folder: Path, model: Path, calibration_json: Path, budget: Budget, con
     from detector.outputs import stage_folder
     from detector.slam.comparison import BACKENDS, compare_backends
     from detector.slam.outputs import write_outputs
-    from detector.slam.sequences import FrontEnd, image_sequences, sim_sequence
+    from detector.slam.sequences import FrontEndSpec, image_sequences, sim_sequence
     from detector.atomic import write_json
     from naoslam.ekf_slam import SlamConfig
     from naoslam.runner import run_slam
@@ -286,8 +287,8 @@ def _slam(folder: Path, model: Path, calibration_json: Path, budget: Budget, con
     chosen = SlamConfig()
     summary: dict = {"backend": chosen.label, "walk_seconds": budget.walk_seconds}
     tables = {}
-    front_ends = {"model": FrontEnd(str(model), calibration, conf),
-                  "colour filter": FrontEnd("colour-filter", calibration, conf)}
+    front_ends = {"model": FrontEndSpec(str(model), calibration, conf),
+                  "colour filter": FrontEndSpec(COLOUR_FILTER, calibration, conf)}
     with stage_folder(folder, (), "slam run") as tmp:
         for name, sequence in zip(front_ends, image_sequences(sim, list(front_ends.values()))):
             subfolder = name.replace(" ", "-")

@@ -132,7 +132,7 @@ def _against_shipped(gain: dict) -> str:
             f"{html.escape(gain['model'])} changes F1 by "
             f"{gain['difference']:+.3f} (95 % interval over these frames {gain['low']:+.3f} to {gain['high']:+.3f}): "
             f"{verdict} it. Keep whichever scores better on your own held-out frames; on rendered frames like its "
-            "training data a short fine-tune seldom improves the shipped model (docs/pole-model-history.md, "
+            "training data a short fine-tune seldom improves the shipped model (docs/history.md, "
             "\"What a short CPU fine-tune does to the shipped model\").</p>")
 
 

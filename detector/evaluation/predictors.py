@@ -1,5 +1,5 @@
-"""The three kinds of front end ``poles evaluate`` compares, behind one interface: frame -> detections
-(``naoslam.detections.Detection``, best first)."""
+"""The front ends ``poles evaluate`` compares, behind one interface: frame -> detections
+(``naoslam.detections.Detection``, best first): naoslam's detectors, and a trained checkpoint on PyTorch."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -8,13 +8,10 @@ import numpy as np
 
 from detector.model_files import read_checkpoint, run_checkpoint
 from naoslam.camera import CameraPose
-from naoslam.colour_filter import ColourFilter
 from naoslam.detections import Detection
-from naoslam.crop_detector import CropDetector
-from naoslam.detector import load_detector, shipped_calibration
-from naoslam.front_end import COLOUR_FILTER
+from naoslam.detector import load_detector
 from naoslam.measurement import RangeCalibration
-from naoslam.shipped import resolve_model
+from naoslam.shipped import COLOUR_FILTER, resolve_model
 
 #: Lowest confidence kept, so that the precision/recall sweep and mAP see every detection.
 SWEEP_CONF = 0.01
@@ -36,17 +33,19 @@ class Predictor:
         raise NotImplementedError
 
 
-class OnnxPredictor(Predictor):
-    """An exported model run by the naoslam front end (FP32 or INT8, at ``input_width`` if given; or the robot's
-    two-stage model, whose boxes are matched by box IoU).
+class RuntimePredictor(Predictor):
+    """A naoslam detector (``naoslam.load_detector``'s): an exported model (FP32 or INT8, at ``input_width`` if
+    given), the robot's two-stage model (boxes, matched by box IoU) or the colour filter (matched by its
+    band-dividing point).
 
-    Ranges come from ``calibration``, else from the model's own one where it was measured at this input width.
+    Ranges come from ``calibration``, else from the detector's own one where it holds at this input width.
     """
 
-    def __init__(self, path: Path, input_width: int | None = None, calibration: RangeCalibration | None = None):
-        self.detector = load_detector(path, conf=SWEEP_CONF, input_width=input_width)
-        self.name = Path(path).name
-        self.matching = "box" if isinstance(self.detector, CropDetector) else "mask"
+    def __init__(self, model: Path | str, input_width: int | None = None,
+                 calibration: RangeCalibration | None = None):
+        self.detector = load_detector(model, conf=SWEEP_CONF, input_width=input_width)
+        self.name = Path(model).name
+        self.matching = self.detector.matching
         self.calibration = (self.detector.check_calibration(calibration) if calibration is not None
                             else self.detector.usable_calibration)
         self.operating_conf = self.detector.stored_conf
@@ -74,21 +73,6 @@ class TorchPredictor(Predictor):
         return ultralytics_frame(self.model, frame, self.imgsz, SWEEP_CONF)
 
 
-class ColourFilterPredictor(Predictor):
-    """The thesis's colour filter; every detection has confidence 1 and is located by its band-dividing point.
-    Ranges come from ``calibration``'s colour law, else from the shipped model's (the colour filter's on the Nao)."""
-
-    name = COLOUR_FILTER
-    matching = "point"
-
-    def __init__(self, calibration: RangeCalibration | None = None):
-        self.filter = ColourFilter()
-        self.calibration = calibration if calibration is not None else shipped_calibration()
-
-    def __call__(self, frame: np.ndarray, camera_pose: CameraPose | None = None) -> list[Detection]:
-        return self.filter(frame)
-
-
 def make_predictor(model: str, imgsz: int | None = None, calibration: RangeCalibration | None = None) -> Predictor:
     """``colour-filter``, ``shipped`` / ``shipped-int8`` / ``shipped-robot`` (the models in naoslam), a ``.pt`` checkpoint (or the run
     folder that holds it) or an ``.onnx``.
@@ -96,10 +80,10 @@ def make_predictor(model: str, imgsz: int | None = None, calibration: RangeCalib
     ``imgsz``: the network's input width (default: 640 for a checkpoint, an ONNX model's own).
     """
     if model == COLOUR_FILTER:
-        return ColourFilterPredictor(calibration)
+        return RuntimePredictor(model, imgsz, calibration)
     path = run_checkpoint(resolve_model(model))
     if path.suffix == ".onnx":
-        return OnnxPredictor(path, imgsz, calibration)
+        return RuntimePredictor(path, imgsz, calibration)
     if path.suffix != ".pt":
         raise ValueError(f"--model {model!r}: give a .pt checkpoint (or its run folder), an .onnx model, `shipped` or "
                          "`colour-filter`")

@@ -17,12 +17,13 @@ from detector.evaluation.counting import (ImageEvaluation, best_threshold, confi
                                           evaluate_image, map_scores, outcome, precision_recall, totals)
 from detector.evaluation.paired import f1_difference
 from detector.evaluation.plots import plot_confusion, plot_per_image, plot_recall_by_width, plot_sweep, write_overlay
-from detector.evaluation.predictors import ColourFilterPredictor, Predictor
+from detector.evaluation.predictors import Predictor
 from detector.atomic import write_json
 from naoslam.camera import NAO_HFOV_DEG
 from naoslam.landmarks import CLASSES
 from naoslam.detections import Detection
 from naoslam.measurement import RangeCalibration, bearing_of_column
+from naoslam.shipped import COLOUR_FILTER
 
 
 def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", conf: float = 0.5,
@@ -173,7 +174,7 @@ TABLE_ROWS = {
     "images": lambda m: str(m["images"]),
     "matched to labels by": lambda m: {"point": "band-dividing point"}.get(m.get("matching", "mask"),
                                                                           f"{m.get('matching', 'mask')} IoU >= 0.5"),
-    "threshold (the counts')": lambda m: "any" if m["model"] == ColourFilterPredictor.name else f"{m['conf']:.2f}",
+    "threshold (the counts')": lambda m: "any" if m["model"] == COLOUR_FILTER else f"{m['conf']:.2f}",
     "TP / FP / FN / TN": lambda m: f"{m['tp']} / {m['fp']} / {m['fn']} / {m['tn']}",
     "FP: class swaps / duplicates": lambda m: f"{m['class_swaps']} / {m['duplicates']}",
     "precision": lambda m: f"{100 * m['precision']:.1f} %",

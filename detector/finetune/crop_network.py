@@ -17,25 +17,24 @@ from detector.crops.export import export_crop_network
 from detector.crops.samples import NO_POLE, crops_of_dataset
 from detector.crops.settings import CropTrainSettings
 from detector.crops.train import load_checkpoint, save_checkpoint, train_crop_network
-from detector.evaluation.predictors import OnnxPredictor, Predictor
+from detector.evaluation.predictors import RuntimePredictor, Predictor
 from detector.model_files import add_metadata, read_info
 from naoslam.shipped import OPERATING_CONF_KEY, resolve_model
 
-#: The fine-tune's learning rate: a tenth of training from scratch, as it starts from a trained network.
-FINETUNE_LEARNING_RATE = 3e-4
 #: Crops that check an export against PyTorch when none of the team's are at hand.
 CHECK_CROPS = 16
 
 
-def train(data: Path, run: Path, weights: Path, epochs: int, minutes: float, seed: int) -> dict:
-    """Fine-tune the crop network at ``weights`` on ``data``'s train frames (valid frames pick the epoch) into
-    ``run``/poles-robot.pt."""
+def train(data: Path, run: Path, weights: Path, epochs: int, minutes: float, learning_rate: float, seed: int) -> dict:
+    """Fine-tune the crop network at ``weights`` on ``data``'s train frames into ``run``/poles-robot.pt: the last
+    epoch's weights, as for the accurate model (a team's valid split is too small to pick an epoch on)."""
     start = load_checkpoint(weights)
     train_crops = crops_of_dataset(data, ("train",), start.size_wh, seed=seed)
     valid_crops = crops_of_dataset(data, ("valid",), start.size_wh, seed=seed + 1)
     if not (valid_crops.classes != NO_POLE).any():
-        valid_crops = train_crops  # a valid split without a pole cannot pick an epoch: the last is as good
-    settings = CropTrainSettings(epochs=epochs, learning_rate=FINETUNE_LEARNING_RATE, seed=seed, minutes=minutes)
+        valid_crops = train_crops  # a valid split without a pole: each epoch reports on the train crops
+    settings = CropTrainSettings(epochs=epochs, learning_rate=learning_rate, seed=seed, minutes=minutes,
+                                 keep="last")
     network, history = train_crop_network(train_crops, valid_crops, settings, start)
     run.mkdir(parents=True, exist_ok=True)
     checkpoint = save_checkpoint(network, run / "poles-robot.pt", history, settings)
@@ -81,4 +80,4 @@ def shipped_metadata() -> dict:
 
 def predictor(weights: Path) -> Predictor:
     """How a checkpoint is judged: its ONNX export through the runtime's two-stage front end."""
-    return OnnxPredictor(onnx_of(weights))
+    return RuntimePredictor(onnx_of(weights))

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import shutil
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from detector.atomic import write_json
@@ -17,6 +18,7 @@ from detector.finetune.judge import REFERENCE, RENDERED_SETS, compare_models, re
 from detector.finetune.recipe import DEFAULT_BLEND_SHARE, SIGN_TEST_LEVEL, FinetuneRecipe
 from detector.datasets.model import BAD_INPUT_ERRORS
 from detector.errors import keep_on_interrupt
+from detector.evaluation.predictors import Predictor
 from detector.outputs import check_placement
 from detector.stages import StageFailed, StageLedger, file_fingerprint, stage_key
 from detector.synth.backdrops import scan_backdrops
@@ -176,7 +178,8 @@ def _train(key: str, data: Path, run: Path, recipe: FinetuneRecipe, spent_minute
         shutil.rmtree(run, ignore_errors=True)
         minutes = recipe.training_minutes(spent_minutes)
         console.print(f"training the crop network for at most {recipe.epoch_cap} epochs or {minutes:.1f} minutes")
-        return crop_network.train(data, run, recipe.start.weights, recipe.epoch_cap, minutes, recipe.seed)
+        return crop_network.train(data, run, recipe.start.weights, recipe.epoch_cap, minutes, recipe.learning_rate,
+                                  recipe.seed)
 
     last, key_file = run / "weights" / "last.pt", run.with_name(f"{run.name}.key")
     same_run = key_file.is_file() and key_file.read_text() == key and last.is_file()
@@ -210,7 +213,7 @@ def _starting_metadata(recipe: FinetuneRecipe) -> dict:
     return read_info(resolve_model(recipe.start.shipped)).extra
 
 
-def _predictor_of(recipe: FinetuneRecipe):
+def judging_predictor(recipe: FinetuneRecipe) -> Callable[[Path], Predictor]:
     """How a checkpoint of the starting model's network is run to be judged."""
     if recipe.start.network == "crops":
         from detector.finetune.crop_network import predictor
@@ -234,7 +237,7 @@ def _blend(finetuned: Path, data: Path, folder: Path, conf: float, recipe: Finet
 
     shutil.rmtree(folder, ignore_errors=True)
     folder.mkdir(parents=True)
-    return choose_blend(recipe.start.weights, finetuned, data, folder, conf, _predictor_of(recipe), blend)
+    return choose_blend(recipe.start.weights, finetuned, data, folder, conf, judging_predictor(recipe), blend)
 
 
 def _export_model(weights: Path, model: Path, data: Path, mixed: Path, recipe: FinetuneRecipe) -> dict:
@@ -284,4 +287,4 @@ def _evaluate(folder: Path, data: Path, finetuned: Path, blend: dict, conf: floa
     models = {REFERENCE: recipe.start.weights, "fine-tune": finetuned,
               f"blend {blend['chosen']:g}": Path(blend["weights"])}
     return {"held_out": held_out, "conf": conf,
-            "rows": compare_models(models, sets, folder, conf, _predictor_of(recipe))}
+            "rows": compare_models(models, sets, folder, conf, judging_predictor(recipe))}

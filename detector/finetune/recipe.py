@@ -9,6 +9,8 @@ import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from augment.config import THESIS_COPIES
+
 #: Blend shares tried on the export's valid split: the fine-tune's share, 0 being the shipped model.
 BLEND_SHARES = (0.0, 0.25, 0.5, 0.75, 1.0)
 #: The share shipped unless the valid split shows another to be better frame by frame (docs/finetune.md).
@@ -22,7 +24,7 @@ class StartingModel:
     """A shipped model a team fine-tunes: its shipped name (``shipped`` or ``shipped-robot``), its ``network``
     (``yolo``: a YOLOv8-seg trained by Ultralytics at ``imgsz``, the first ``backbone_layers`` kept by default;
     ``crops``: the robot's two-stage crop network, trained by ``detector.crops``), its measured recipe defaults (the
-    share of rendered frames, and an epoch cap or None for as many as the minutes allow; docs/finetune.md), whether
+    share of rendered frames, an epoch cap or None for as many as the minutes allow, AdamW's step; docs/finetune.md), whether
     an INT8 copy is exported beside the FP32 model (the accurate one's; at the Atom's instruction set FP32 is the
     faster), and the file name the fine-tune is delivered under."""
 
@@ -33,6 +35,7 @@ class StartingModel:
     backbone_layers: int
     rehearsal_share: float
     epochs: int | None
+    lr0: float
     int8: bool
     finetuned_name: str
 
@@ -46,9 +49,9 @@ class StartingModel:
 
 #: The shipped models ``poles finetune --model`` starts from.
 STARTING_MODELS = {"accurate": StartingModel("shipped", "yolo", "yolov8n-seg", 640, 10, rehearsal_share=0.5,
-                                             epochs=None, int8=True, finetuned_name="poles-finetuned.onnx"),
+                                             epochs=None, lr0=0.0005, int8=True, finetuned_name="poles-finetuned.onnx"),
                    "robot": StartingModel("shipped-robot", "crops", "pole-crops", None, 0, rehearsal_share=0.75,
-                                          epochs=30, int8=False, finetuned_name="poles-robot-finetuned.onnx")}
+                                          epochs=30, lr0=0.0003, int8=False, finetuned_name="poles-robot-finetuned.onnx")}
 
 
 @dataclass(frozen=True)
@@ -58,13 +61,13 @@ class FinetuneRecipe:
     team's paint, the rest in the renderer's own, and ``far_share`` of them with far poles only; ``backdrop_share`` of
     them drawn over the frames in ``backgrounds``, a folder of the team's own frames without poles, when one is given);
     ``epochs``: at most this many training epochs within the minutes; ``freeze``: the first layers left as shipped;
-    ``lr0``/``warmup_epochs``: AdamW's step and its ramp. ``rehearsal_share``, ``epochs``, ``freeze`` and ``imgsz``
-    left None take the starting model's."""
+    ``lr0``/``warmup_epochs``: AdamW's step and its ramp. ``rehearsal_share``, ``epochs``, ``freeze``, ``lr0`` and
+    ``imgsz`` left None take the starting model's."""
 
     model: str = "accurate"
     minutes: float = 15.0
     epochs: int | None = None
-    copies: int = 7
+    copies: int = THESIS_COPIES
     rehearsal_share: float | None = None
     far_share: float = 0.5
     own_paint_share: float = 0.5
@@ -72,7 +75,7 @@ class FinetuneRecipe:
     #: The shipped models' own share of frames over real backdrops.
     backdrop_share: float = 0.75
     freeze: int | None = None
-    lr0: float = 0.0005
+    lr0: float | None = None
     warmup_epochs: float = 1.0
     imgsz: int | None = None
     batch: int = 8
@@ -121,6 +124,11 @@ class FinetuneRecipe:
         return self.start.epochs if self.epochs is None else self.epochs
 
     @property
+    def learning_rate(self) -> float:
+        """AdamW's step: ``lr0``, else the starting model's."""
+        return self.start.lr0 if self.lr0 is None else self.lr0
+
+    @property
     def frozen_layers(self) -> int:
         """Layers kept as shipped: ``freeze``, else the starting model's backbone."""
         return self.start.backbone_layers if self.freeze is None else self.freeze
@@ -128,7 +136,8 @@ class FinetuneRecipe:
     def settings(self) -> dict:
         """Every field, and the values the ones left None resolve to for the starting model: what a run records."""
         return {**asdict(self), "rendered_share": self.rendered_share, "epoch_cap": self.epoch_cap,
-                "frozen_layers": self.frozen_layers, "training_size": self.training_size}
+                "frozen_layers": self.frozen_layers, "training_size": self.training_size,
+                "learning_rate": self.learning_rate}
 
     def rehearsal_frames(self, real_training_frames: int) -> int:
         """Rendered frames to mix with ``real_training_frames`` (the augmented export) to reach ``rendered_share``."""
@@ -147,4 +156,4 @@ class FinetuneRecipe:
 
     def hyperparameters(self) -> dict:
         """The Ultralytics training arguments this recipe sets beyond ``TrainSettings``' own."""
-        return {"optimizer": "AdamW", "lr0": self.lr0, "warmup_epochs": self.warmup_epochs, "freeze": self.frozen_layers}
+        return {"optimizer": "AdamW", "lr0": self.learning_rate, "warmup_epochs": self.warmup_epochs, "freeze": self.frozen_layers}

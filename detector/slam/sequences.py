@@ -13,6 +13,7 @@ from detector.console import show_progress
 from detector.datasets.io import csv_rows, require_decodable
 from detector.datasets.names import canonical_class
 from naoslam.camera import CameraPose
+from naoslam.front_end import FrontEnd
 from naoslam.ground import ground_plane_problem
 from naoslam.landmarks import CLASSES
 from naoslam.logs import load_utias
@@ -23,8 +24,9 @@ from naoslam.sim import SimConfig, simulate
 
 
 @dataclass(frozen=True)
-class FrontEnd:
-    """Turns frames into measurements: an ONNX model (``shipped``: naoslam's) or the colour filter, with a calibration.
+class FrontEndSpec:
+    """The front end a sequence is measured with, as a command names it: a model ``naoslam.load_detector`` opens
+    (``shipped``, ``shipped-robot``, ``colour-filter``, an ONNX path) and a calibration; ``measurer`` builds it.
 
     ``min_confidence`` None uses the model's own operating threshold, else the thesis's 0.85. ``input_width`` runs
     a ``--dynamic`` model at that input width (None: its own).
@@ -38,12 +40,10 @@ class FrontEnd:
     def measurer(self):
         """naoslam's ``FrontEnd`` for this model: a function (frame, camera_pose=None) -> measurements; with a pose,
         the ground-plane gate and the foot-row range are used (model front ends only)."""
-        from naoslam.front_end import FrontEnd as RuntimeFrontEnd
-
-        return RuntimeFrontEnd(self.model, self.calibration, self.min_confidence, self.input_width)
+        return FrontEnd(self.model, self.calibration, self.min_confidence, self.input_width)
 
 
-def sim_sequence(config: SimConfig, front_end: FrontEnd | None = None, progress: bool = True,
+def sim_sequence(config: SimConfig, front_end: FrontEndSpec | None = None, progress: bool = True,
                  camera_pose: bool = True) -> Sequence:
     """Measurement-level walk, or image-level when a front end is given (frames rendered along the walk; with
     ``camera_pose`` the front end is told each frame's camera pose)."""
@@ -52,7 +52,7 @@ def sim_sequence(config: SimConfig, front_end: FrontEnd | None = None, progress:
     return image_sequences(config, [front_end], progress, camera_pose)[0]
 
 
-def image_sequences(config: SimConfig, front_ends: list[FrontEnd], progress: bool = True,
+def image_sequences(config: SimConfig, front_ends: list[FrontEndSpec], progress: bool = True,
                     camera_pose: bool = True) -> list[Sequence]:
     """One walk, its frames rendered once, seen through each front end in turn. The front ends are opened first, so
     an unreadable model or a missing calibration is refused before a minute of rendering."""
@@ -82,7 +82,7 @@ ODOMETRY_COLUMNS = ("t", "x", "y", "theta")
 POSE_COLUMNS = ("camera_height", "camera_pitch", "camera_roll")
 
 
-def recorded_sequence(frames_dir: Path, odometry_csv: Path, front_end: FrontEnd, time_offset_s: float,
+def recorded_sequence(frames_dir: Path, odometry_csv: Path, front_end: FrontEndSpec, time_offset_s: float,
                       camera_pose: bool = True, progress: bool = True) -> Sequence:
     """Frames named by their time stamp (``12.533.jpg``) and an odometry CSV ``t,x,y,theta``, merged in time.
 
