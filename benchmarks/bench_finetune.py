@@ -124,7 +124,8 @@ def group_export(real: Path, train_prefix: str, test_prefix: str, out: Path) -> 
 
 
 def real_mode(argv: list[str]) -> None:
-    from detector.finetune.judge import REFERENCE, compare_models, render_set
+    from detector.evaluation.paired import REFERENCE
+    from detector.finetune.judge import compare_models, render_set
     from detector.finetune.pipeline import judging_predictor, run_finetune
     from detector.finetune.recipe import STARTING_MODELS, FinetuneRecipe
 

@@ -8,6 +8,7 @@ import os
 import signal
 from collections.abc import Callable, Iterable, Iterator
 from typing import TypeVar
+from naoslam.cores import usable_cores
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -70,4 +71,4 @@ def _plain_signals() -> None:
 
 def default_workers(jobs: int) -> int:
     """Every core, but no more processes than jobs."""
-    return max(1, min(os.cpu_count() or 1, jobs))
+    return max(1, min(usable_cores(), jobs))

@@ -94,8 +94,10 @@ class StageLedger:
                                              error=f"{type(exc).__name__}: {exc}")
             self._save()
             cause = str(exc) if isinstance(exc, BAD_INPUT_ERRORS) else f"{type(exc).__name__}: {exc}"
-            raise StageFailed(f"stage {name!r} failed: {cause}\n"
-                              f"Earlier stages are kept in {self.folder}; fix the cause and run again to resume.") from exc
+            kept = any(record.status == "done" for record in self.records.values())
+            then = (f"Earlier stages are kept in {self.folder}; fix the cause and run again to resume." if kept
+                    else "Fix the cause and run the command again.")
+            raise StageFailed(f"stage {name!r} failed: {cause}\n{then}") from exc
         self.records[name] = StageRecord(name, key, "done", time.perf_counter() - start, summary)
         self._save()
         return summary

@@ -2,13 +2,13 @@
 operating threshold and the range calibration stored in it, and the camera's field of view for the ground view."""
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import onnxruntime as ort
 
 from naoslam.engines import ENGINES
 from naoslam.camera import NAO_HFOV_DEG, CameraPose, PinholeCamera
+from naoslam.cores import usable_cores
 from naoslam.ground import GroundView
 from naoslam.measurement import RangeCalibration
 from naoslam.model_info import ModelInfo
@@ -33,7 +33,7 @@ def load_session(path: Path | str, threads: int | None = None) -> ort.InferenceS
         raise ValueError(f"{path}: a PyTorch checkpoint; the runtime runs its ONNX export - "
                          f"`poles export --weights {path} --out {path.with_suffix('.onnx')}`")
     options = ort.SessionOptions()
-    options.intra_op_num_threads = threads or os.cpu_count() or 1
+    options.intra_op_num_threads = threads or usable_cores()
     options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
     # Idle worker threads sleep instead of spinning: the robot's other processes need the cores between frames.
     options.add_session_config_entry("session.intra_op.allow_spinning", "0")

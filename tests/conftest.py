@@ -2,9 +2,27 @@
 optional ../shared folder."""
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 import sys
+
+
+def _share_the_cores_among_test_workers() -> None:
+    """Under pytest-xdist, give each worker its own share of the cores (one each on two cores), so that a worker
+    running on every core (torch, onnxruntime, the renderer's processes) never oversubscribes the other's."""
+    workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "")
+    if workers < 2 or not worker.startswith("gw") or not hasattr(os, "sched_setaffinity"):
+        return
+    cores = sorted(os.sched_getaffinity(0))
+    share = len(cores) // workers
+    if share >= 1:
+        index = int(worker[2:]) % workers
+        os.sched_setaffinity(0, cores[index * share:(index + 1) * share])
+
+
+_share_the_cores_among_test_workers()  # before torch, onnxruntime or OpenCV choose their thread counts
 from pathlib import Path
 
 import cv2

@@ -61,12 +61,12 @@ def test_demo_runs_every_stage_writes_the_report_and_resumes(tmp_path, monkeypat
     assert page.count('alt="recall by pole width"') == 4
     evaluation = json.loads((out / "evaluation" / "summary.json").read_text())
     assert [row["model"] for row in evaluation] == ["yolov8n-seg.onnx", "yolov8n-seg-int8.onnx",
-                                                    "shipped-as-installed", "colour-filter"]
+                                                    "shipped", "colour-filter"]
     # The shipped model as installed is counted beside the trained one, and the report says what training bought.
     f1 = {row["model"]: row["f1"] for row in evaluation}
     gain = stages["evaluate"]["summary"]["against_shipped"]
-    assert gain["model"] == "yolov8n-seg.onnx" and gain["reference"] == "shipped-as-installed"
-    assert gain["difference"] == pytest.approx(f1["yolov8n-seg.onnx"] - f1["shipped-as-installed"])
+    assert gain["model"] == "yolov8n-seg.onnx" and gain["reference"] == "shipped"
+    assert gain["difference"] == pytest.approx(f1["yolov8n-seg.onnx"] - f1["shipped"])
     assert gain["low"] <= gain["difference"] <= gain["high"]
     assert gain["reference_conf"] == LandmarkDetector().stored_conf
     assert f"changes F1 by {gain['difference']:+.3f}" in page

@@ -94,14 +94,14 @@ def _run_as_written(lines: list[str], smaller: dict[str, str], export: Path, fra
 
 def test_the_readmes_own_export_way_runs_as_written_on_a_rendered_export(synth_dataset, tmp_path, monkeypatch):
     """`poles check`, `poles finetune` and `poles predict` as the README gives them, on a small rendered export;
-    only the amounts shrink (a few seconds of training at 64 px, 10-frame rendered sets)."""
+    only the amounts shrink (two epochs at 64 px, 10-frame rendered sets)."""
     export, frames = tmp_path / "poles-export", tmp_path / "new-frames"
     shutil.copytree(synth_dataset, export)
     shutil.copytree(synth_dataset / "valid" / "images", frames)
     monkeypatch.chdir(tmp_path)
     lines = _readme_walk_through("Your own export, start to finish")
     assert [line.split()[1] for line in lines] == ["check", "finetune", "predict"]
-    _run_as_written(lines, {"--out runs/mine": "--out runs/mine --minutes 0.3 --imgsz 64 --copies 1 "
+    _run_as_written(lines, {"--out runs/mine": "--out runs/mine --minutes 0.3 --epochs 2 --imgsz 64 --copies 1 "
                                                "--evaluation-frames 10"}, export, frames)
     assert (tmp_path / "runs" / "mine" / "report.html").is_file()
     assert any((tmp_path / "prelabels").rglob("*.txt"))
@@ -113,7 +113,7 @@ def test_the_readmes_stage_by_stage_way_runs_as_written_on_a_rendered_export(syn
     export = tmp_path / "poles-export"
     shutil.copytree(synth_dataset, export)
     smaller = {"--time 1": "--epochs 1 --imgsz 64 --batch 8", "--images 195": "--images 13",
-               "--data data/split": "--data data/split --imgsz 480 640"}
+               "--data data/split": "--data data/split --imgsz 256 320"}
     monkeypatch.chdir(tmp_path)
     lines = _readme_walk_through("Stage by stage")
     assert [line.split()[1] for line in lines] == ["check", "split", "augment", "train", "export", "synth",

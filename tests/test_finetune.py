@@ -25,7 +25,7 @@ from naoslam.crop_detector import CropDetector
 from naoslam.detector import LandmarkDetector, load_detector
 
 #: A tiny recipe: 64 px, one augmented copy, a few seconds of training, 10-frame rendered sets.
-TINY = FinetuneRecipe(minutes=0.3, copies=1, imgsz=64, evaluation_frames=10)
+TINY = FinetuneRecipe(minutes=0.3, epochs=2, copies=1, imgsz=64, evaluation_frames=10)
 
 
 def _digest(folder: Path) -> str:

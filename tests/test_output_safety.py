@@ -155,3 +155,10 @@ def test_an_annotations_json_of_another_shape_is_named_not_silently_ignored(data
     (dataset_copy / "annotations.json").write_text(json.dumps({"images": {name: "oops" for name in names}}))
     assert main(["evaluate", str(dataset_copy), "--model", "colour-filter", "--out", str(tmp_path / "ev")]) == 0
     assert "their truth is ignored" in capsys.readouterr().out
+
+
+def test_an_annotations_json_for_other_images_is_named_not_silently_ignored(dataset_copy, tmp_path, capsys):
+    (dataset_copy / "annotations.json").write_text(json.dumps({"images": {"x.jpg": {"landmarks": []}}}))
+    assert main(["evaluate", str(dataset_copy), "--model", "colour-filter", "--out", str(tmp_path / "ev")]) == 0
+    printed = capsys.readouterr().out
+    assert "names none of the dataset's" in printed and "x.jpg" in printed

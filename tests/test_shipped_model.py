@@ -381,7 +381,7 @@ def test_openvino_engine_gives_onnxruntimes_answers_on_the_whole_frame_and_the_b
     from detector.synth.walk import render_walk, walk_camera_poses
     from naoslam.sim import SimConfig, simulate
 
-    walk = simulate(SimConfig(seed=1, duration_s=4))
+    walk = simulate(SimConfig(seed=1, duration_s=2))
     frames, poses = render_walk(walk, progress=False, workers=1), walk_camera_poses(walk)
     for model, tolerance_px in (("shipped", 0.5), ("shipped-int8", 4.0)):  # INT8 kernels round differently
         reference, openvino = LandmarkDetector(model), LandmarkDetector(model, engine="openvino")

@@ -55,6 +55,10 @@ def load_truth(dataset: Dataset, csv_path: Path | None = None) -> dict[str, Imag
     if odd:
         print(f"note: {path}: the entries of {len(odd)} image(s) ({', '.join(odd[:3])}) are not `poles synth`'s "
               "(an object with `landmarks`); their truth is ignored")
+    names = {sample.image.name for sample in dataset.samples}
+    if images and not names & set(images):
+        print(f"note: {path} names none of the dataset's {len(names)} images (it names {', '.join(list(images)[:3])}"
+              f"{', ...' if len(images) > 3 else ''}); its truth is ignored")
     return truth
 
 

@@ -8,14 +8,12 @@ from dataclasses import asdict
 from pathlib import Path
 
 from detector.atomic import write_json
-from detector.evaluation.paired import f1_difference
+from detector.evaluation.paired import REFERENCE, f1_difference
 from detector.evaluation.predictors import Predictor
 from detector.evaluation.run import evaluate
 from detector.synth.generate import SynthJob, generate_dataset
 from detector.synth.scene import SceneConfig
 
-#: The model every other is compared with; ``compare_models`` expects it among its models.
-REFERENCE = "shipped"
 #: Width bins (``evaluation.by_width``) that make up "under 16 px".
 SMALL_BINS = ("< 10 px", "10-16 px")
 #: The fresh rendered sets every fine-tune is judged on besides the team's held-out frames: what the shipped model
@@ -35,7 +33,7 @@ def render_set(folder: Path, frames: int, far_share: float, seed: int, backgroun
 
 def compare_models(models: dict[str, Path], sets: dict[str, tuple[Path, str]], folder: Path, conf: float,
                    predictor_of: Callable[[Path], Predictor]) -> list[dict]:
-    """Every model (checkpoints by name, ``REFERENCE`` among them, each run by ``predictor_of``) on every set
+    """Every model (checkpoints by name, the shipped one as ``REFERENCE`` among them, each run by ``predictor_of``) on every set
     (dataset, split) at ``conf``; one row per set and model, written to ``folder``/summary.json with each model's
     evaluation folder."""
     rows = []

@@ -14,7 +14,8 @@ from pathlib import Path
 
 from detector.atomic import write_json
 from detector.console import make_console
-from detector.finetune.judge import REFERENCE, RENDERED_SETS, compare_models, render_set
+from detector.evaluation.paired import REFERENCE
+from detector.finetune.judge import RENDERED_SETS, compare_models, render_set
 from detector.finetune.recipe import DEFAULT_BLEND_SHARE, SIGN_TEST_LEVEL, FinetuneRecipe
 from detector.datasets.model import BAD_INPUT_ERRORS
 from detector.errors import keep_on_interrupt

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import difflib
 import math
-import os
 import shutil
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -31,6 +30,7 @@ from detector.model_files import read_checkpoint
 from detector.training.curves import best_epoch, plot_training_curves, read_results
 from detector.training.devices import check_device
 from detector.training.distillation import check_teacher, shared_stride_distillation
+from naoslam.cores import usable_cores
 
 #: Ultralytics' segmentation models that can be built from their YAML without a download.
 ULTRALYTICS_MODELS = ("yolov8n-seg", "yolov8s-seg", "yolov8m-seg")
@@ -122,8 +122,9 @@ def parse_hyperparameters(pairs: list[str]) -> dict:
 
 
 def use_all_cores(threads: int | None = None) -> int:
-    """Make Ultralytics' ``select_device`` give torch ``threads`` (default: every core) instead of cpu_count - 1."""
-    threads = threads or os.cpu_count() or 1
+    """Make Ultralytics' ``select_device`` give torch ``threads`` (default: every core this process may use) instead
+    of cpu_count - 1."""
+    threads = threads or usable_cores()
     torch_utils.NUM_THREADS = threads
     torch_utils.torch.set_num_threads(threads)
     return threads
