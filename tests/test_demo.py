@@ -99,3 +99,17 @@ def test_the_demo_refuses_a_folder_of_someone_elses_files(tmp_path):
             run_demo(out, TINY)
     assert sorted(p.name for p in mine.iterdir()) == ["thesis.tex"]
     assert (mine / "thesis.tex").read_text() == "three years"
+
+
+def test_the_fast_demo_trains_for_what_the_other_stages_leave_of_its_whole_time():
+    """On the test machine the whole run fits 12 minutes; a machine twice as slow before training trains for less,
+    so that it ends near the same time; the slowest still trains for a couple of minutes."""
+    from detector.demo.pipeline import AFTER_TRAINING_S, BEFORE_TRAINING_S, BUDGETS, MIN_TRAINING_S
+
+    fast = BUDGETS["fast"]
+    here, twice_as_slow = fast.training_hours(BEFORE_TRAINING_S), fast.training_hours(2 * BEFORE_TRAINING_S)
+    assert 3600 * here + BEFORE_TRAINING_S + AFTER_TRAINING_S == pytest.approx(60 * fast.whole_minutes)
+    assert 3600 * twice_as_slow + 2 * (BEFORE_TRAINING_S + AFTER_TRAINING_S) == pytest.approx(60 * fast.whole_minutes)
+    assert twice_as_slow < here <= fast.train_hours
+    assert fast.training_hours(3600) * 3600 == pytest.approx(MIN_TRAINING_S)
+    assert TINY.training_hours(1000) is None  # a budget without a whole time trains for its epochs

@@ -73,11 +73,13 @@ def test_finetune_writes_the_models_the_report_and_the_metrics_and_leaves_the_ex
 
 
 def test_the_robot_model_is_fine_tuned_and_shipped_as_the_robot_model_is(export, tmp_path):
-    from detector.model_files import read_info
+    from detector.model_files import ROBOT_WEIGHTS, read_info
     from naoslam.shipped import OPERATING_CONF_KEY, robot_path
 
+    installed = sorted(ROBOT_WEIGHTS.parent.iterdir()) + sorted(robot_path().parent.iterdir())
     results = run_finetune(export, tmp_path / "run", FinetuneRecipe(model="robot", minutes=0.2, epochs=2, copies=1,
                                                                     evaluation_frames=10))
+    assert sorted(ROBOT_WEIGHTS.parent.iterdir()) + sorted(robot_path().parent.iterdir()) == installed
     model = Path(results["export model"]["fp32"])
     assert model.name == "poles-robot-finetuned.onnx" and results["export model"]["int8"] is None
     shipped = read_info(robot_path()).extra

@@ -7,6 +7,7 @@ colour filter)
 from __future__ import annotations
 
 import shutil
+import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -26,9 +27,20 @@ console = make_console()
 MIN_TUNING_POLES = 200
 
 
+#: What the stages around training took on this project's two-core test machine (Intel Xeon) in the fast budget:
+#: before it (data, check, augment) and after it (export, calibration, evaluation, SLAM, and training's own setup and
+#: final validation beyond its time cap). A machine that took longer before training is taken to be as much slower
+#: after it.
+BEFORE_TRAINING_S = 34.0
+AFTER_TRAINING_S = 150.0
+#: Training gets at least this long, however slow the machine.
+MIN_TRAINING_S = 120.0
+
+
 @dataclass(frozen=True)
 class Budget:
     """How much work each stage does. ``train_hours`` caps training time (Ultralytics fits the epochs to it);
+    ``whole_minutes``, when given, is the whole run's time: training gets what the other stages leave of it.
     ``conf`` None picks the confidence threshold that maximises F1 on the validation split (or, when that split
     holds too few poles to choose on, keeps the threshold the starting model shipped with)."""
 
@@ -46,12 +58,23 @@ class Budget:
     compare_seeds: int
     conf: float | None
     rationale: str = ""
+    whole_minutes: float | None = None
+
+    def training_hours(self, spent_s: float) -> float | None:
+        """The training's time cap after ``spent_s`` seconds of the stages before it: ``train_hours``, shortened so
+        that the whole run stays within ``whole_minutes`` on a machine as much slower than the test machine after
+        training as it was before (at least ``MIN_TRAINING_S``)."""
+        if self.whole_minutes is None:
+            return self.train_hours
+        slowness = max(1.0, spent_s / BEFORE_TRAINING_S)
+        left_s = max(MIN_TRAINING_S, 60 * self.whole_minutes - spent_s - slowness * AFTER_TRAINING_S)
+        return min(left_s / 3600, self.train_hours) if self.train_hours else left_s / 3600
 
 
 BUDGETS = {
     "fast": Budget("fast", images=300, copies=THESIS_COPIES, models=("yolov8n-seg",), imgsz=640, epochs=100,
-                   train_hours=0.17, batch=8, export_hw=(480, 640), calibration_shots=90, walk_seconds=90.0,
-                   compare_seeds=3, conf=None, rationale=(
+                   train_hours=0.17, whole_minutes=12.0, batch=8, export_hw=(480, 640), calibration_shots=90,
+                   walk_seconds=90.0, compare_seeds=3, conf=None, rationale=(
                        "About 13 minutes on two cores, 10 of them training. The run fine-tunes the shipped "
                        "pole-pretrained YOLOv8n (its line trained on 68,000 rendered frames, most over real "
                        "robot-camera backgrounds) on this dataset at 640 px, the Nao's full frame width, so that far "
@@ -72,6 +95,7 @@ BUDGETS = {
 
 def run_demo(out: Path, budget: Budget, seed: int = 0) -> int:
     """Run every stage into ``out``; returns a process exit code."""
+    started = time.perf_counter()
     out = Path(out)
     StageLedger.check_folder(out, "demo")
     out.mkdir(parents=True, exist_ok=True)
@@ -79,7 +103,7 @@ def run_demo(out: Path, budget: Budget, seed: int = 0) -> int:
     console.print(f"[bold]poles demo[/bold] ({budget.name} budget) into {out}: "
                   "data, check, augment, train, export, calibrate, evaluate, slam, report")
     try:
-        results = _stages(ledger, out, budget, seed)
+        results = _stages(ledger, out, budget, seed, started)
     except StageFailed as failure:
         console.print(f"[bold red]{failure}")
         _print_timings(ledger)
@@ -90,7 +114,7 @@ def run_demo(out: Path, budget: Budget, seed: int = 0) -> int:
     return 0
 
 
-def _stages(ledger: StageLedger, out: Path, budget: Budget, seed: int) -> dict:
+def _stages(ledger: StageLedger, out: Path, budget: Budget, seed: int, started: float) -> dict:
     from augment.run import augment_dataset
     from detector.datasets.check import check_dataset
     from detector.synth.generate import SynthJob, generate_dataset
@@ -113,6 +137,7 @@ def _stages(ledger: StageLedger, out: Path, budget: Budget, seed: int) -> dict:
     results["augment"] = ledger.run("augment", key, [augmented / "data.yaml"], lambda: augment_dataset(
         data, augmented, copies=budget.copies, seed=seed, preview=True, force=True))
     models = {}
+    train_hours = budget.training_hours(time.perf_counter() - started)
     for model in budget.models:
         start = _start_weights(model)
         train_key = stage_key(data=key, model=model, start=file_fingerprint(start), imgsz=budget.imgsz,
@@ -120,7 +145,7 @@ def _stages(ledger: StageLedger, out: Path, budget: Budget, seed: int) -> dict:
         run = out / "train" / model
         results[f"train {model}"] = ledger.run(f"train {model}", train_key, [run / "weights" / "best.pt"],
                                                lambda: _train(ledger, f"train {model}", train_key, augmented, run,
-                                                              model, start, budget, seed))
+                                                              model, start, budget, train_hours, seed))
         export_key = stage_key(train=train_key, hw=budget.export_hw)
         onnx = out / "models" / f"{model}.onnx"
         results[f"export {model}"] = ledger.run(f"export {model}", export_key, [onnx], lambda: _export(
@@ -175,8 +200,9 @@ def _starting_conf(model: str) -> float | None:
 
 
 def _train(ledger: StageLedger, name: str, key: str, data: Path, run: Path, model: str, weights: Path | None,
-           budget: Budget, seed: int) -> dict:
-    """Train from ``weights``, resuming an interrupted run of the same stage; other leftovers are started afresh."""
+           budget: Budget, hours: float | None, seed: int) -> dict:
+    """Train from ``weights`` for at most ``hours`` (None: the budget's epochs), resuming an interrupted run of the
+    same stage; other leftovers are started afresh."""
     from detector.training.train import TrainSettings, summarise_run, train_model
 
     previous = ledger.previous(name)
@@ -184,9 +210,10 @@ def _train(ledger: StageLedger, name: str, key: str, data: Path, run: Path, mode
     if run.exists() and not resume:
         shutil.rmtree(run)
     settings = TrainSettings(model=model, epochs=budget.epochs, imgsz=budget.imgsz, batch=budget.batch,
-                             patience=max(budget.epochs // 4, 10), seed=seed, time_hours=budget.train_hours)
+                             patience=max(budget.epochs // 4, 10), seed=seed, time_hours=hours)
     train_model(data, run, settings, weights=weights, resume=resume)
     return {**summarise_run(run), "model": model, "weights_from": str(weights or "scratch"), "imgsz": budget.imgsz,
+            "time_hours": hours,
             "curves": str(run / "training_curves.png"),
             "weights": str(run / "weights" / "best.pt")}
 

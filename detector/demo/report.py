@@ -19,19 +19,26 @@ def write_report(out: Path, results: dict, timings: list[StageRecord]) -> Path:
              '<p class="note">Synthetic pole dataset rendered with a calibrated Nao camera, augmented as the 2024 '
              "thesis did, a YOLOv8 segmentation model trained on this CPU, exported to ONNX (FP32 and INT8), range "
              "calibration, evaluation as the thesis counted, and EKF SLAM on a walk rendered image by image.</p>",
-             _stages(timings, budget), _data(results), _training(results), _export(results),
+             _stages(timings, budget, _training_hours(results)), _data(results), _training(results), _export(results),
              _calibration(results["calibrate"]), _evaluation(results["evaluate"]), _slam(results["slam"])]
     return write_text(Path(out) / "report.html", page("poles demo report", parts))
 
 
-def _stages(timings: list[StageRecord], budget: dict) -> str:
+def _training_hours(results: dict) -> float | None:
+    """The time cap the first model trained under (None: it trained for the budget's epochs)."""
+    first = next(key for key in results if key.startswith("train "))
+    return results[first].get("time_hours", results["budget"]["train_hours"])
+
+
+def _stages(timings: list[StageRecord], budget: dict, train_hours: float | None) -> str:
     rows = [[r.name, r.status + ("" if r.ran else " (reused)"), f"{r.seconds:.0f}"] for r in timings]
     total = sum(r.seconds for r in timings)
     return ("<h2>Stages and time taken</h2>" + table(["stage", "status", "seconds"], rows)
             + f"<p>Total {total / 60:.1f} min. Budget: {budget['images']} images, {budget['copies']} augmented "
             f"copies each, {', '.join(budget['models'])} at {budget['imgsz']} px"
-            + (f" for {budget['train_hours'] * 60:.1f} min of training" if budget["train_hours"] else
-               f" for {budget['epochs']} epochs")
+            + (f" for {train_hours * 60:.1f} min of training" if train_hours else f" for {budget['epochs']} epochs")
+            + (f" (what the other stages left of {budget['whole_minutes']:g} minutes)"
+               if budget.get("whole_minutes") else "")
             + f", exported at {budget['export_hw'][1]}x{budget['export_hw'][0]}.</p>"
             + f"<p class='note'>{html.escape(budget['rationale'])}</p>")
 

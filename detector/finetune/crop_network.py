@@ -18,8 +18,8 @@ from detector.crops.samples import NO_POLE, crops_of_dataset
 from detector.crops.settings import CropTrainSettings
 from detector.crops.train import load_checkpoint, save_checkpoint, train_crop_network
 from detector.evaluation.predictors import RuntimePredictor, Predictor
-from detector.model_files import add_metadata, read_info
-from naoslam.shipped import OPERATING_CONF_KEY, resolve_model
+from detector.model_files import ROBOT_WEIGHTS, add_metadata, read_info
+from naoslam.shipped import OPERATING_CONF_KEY, resolve_model, robot_path
 
 #: Crops that check an export against PyTorch when none of the team's are at hand.
 CHECK_CROPS = 16
@@ -79,5 +79,8 @@ def shipped_metadata() -> dict:
 
 
 def predictor(weights: Path) -> Predictor:
-    """How a checkpoint is judged: its ONNX export through the runtime's two-stage front end."""
+    """How a checkpoint is judged: its ONNX export through the runtime's two-stage front end (the shipped checkpoint
+    by the shipped ONNX, so nothing is ever written into the installation)."""
+    if Path(weights).resolve() == ROBOT_WEIGHTS.resolve():
+        return RuntimePredictor(robot_path())
     return RuntimePredictor(onnx_of(weights))
