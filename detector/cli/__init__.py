@@ -3,7 +3,9 @@
 Each module adds its commands' parsers and says which function runs each (``set_defaults(run=...)``):
 ``dataset_commands`` (synth, check, convert, augment, split), ``training_commands`` (train, export, soup,
 calibrate), ``finetune_command``, ``evaluation_commands`` (evaluate, predict), ``slam_command`` and ``demo_command``. ``arguments`` holds
-the argument types they share; ``detector.errors.run_command`` decides how every command ends.
+the argument types they share; ``detector.errors.run_command`` decides how every command ends. A command module
+imports what its command runs (torch, Ultralytics, the pipelines) inside the function that runs it, on purpose:
+``poles --help`` and a mistyped option answer in half a second instead of loading the frameworks.
 """
 from __future__ import annotations
 

@@ -14,11 +14,31 @@ from pathlib import Path
 from rich.table import Table
 
 from augment.config import THESIS_COPIES
+from augment.run import augment_dataset
+from calibration.run import embed_calibration, run_calibration
+from detector.atomic import write_json
 from detector.console import make_console
+from detector.datasets import load_dataset
+from detector.datasets.check import check_dataset
+from detector.demo.report import write_report
+from detector.evaluation.paired import REFERENCE, f1_difference
+from detector.evaluation.predictors import make_predictor
+from detector.evaluation.run import evaluate
+from detector.model_files import SHIPPED_WEIGHTS, load_calibration, read_info
+from detector.outputs import stage_folder
+from detector.slam.comparison import BACKENDS, compare_backends
+from detector.slam.outputs import write_outputs
+from detector.slam.sequences import FrontEndSpec, image_sequences, sim_sequence
 from detector.stages import StageFailed, StageLedger, file_fingerprint, stage_key
-from detector.model_files import SHIPPED_WEIGHTS
+from detector.synth.generate import SynthJob, generate_dataset
 from detector.training.starting_point import starting_point
-from naoslam.shipped import COLOUR_FILTER, shipped_path
+from detector.training.train import TrainSettings, summarise_run, train_model
+from export.onnx_export import int8_path
+from export.run import ExportJob, run_export
+from naoslam.ekf_slam import SlamConfig
+from naoslam.runner import run_slam
+from naoslam.shipped import COLOUR_FILTER, OPERATING_CONF_KEY, shipped_model, shipped_path
+from naoslam.sim import SimConfig
 
 console = make_console()
 
@@ -115,10 +135,6 @@ def run_demo(out: Path, budget: Budget, seed: int = 0) -> int:
 
 
 def _stages(ledger: StageLedger, out: Path, budget: Budget, seed: int, started: float) -> dict:
-    from augment.run import augment_dataset
-    from detector.datasets.check import check_dataset
-    from detector.synth.generate import SynthJob, generate_dataset
-
     data, augmented = out / "data", out / "augmented"
     results: dict = {"budget": asdict(budget)}
     key = stage_key(images=budget.images, seed=seed)
@@ -167,15 +183,11 @@ def _stages(ledger: StageLedger, out: Path, budget: Budget, seed: int, started: 
     conf = results["evaluate"]["conf"]
     results["slam"] = ledger.run("slam", slam_key, [out / "slam" / "summary.json"], lambda: _slam(
         out / "slam", best_model, out / "calibration" / "calibration.json", budget, conf, seed))
-    from detector.demo.report import write_report
-
     results["report"] = {"html": str(write_report(out, results, ledger.timings()))}
     return results
 
 
 def _dataset_summary(root: Path) -> dict:
-    from detector.datasets import load_dataset
-
     dataset = load_dataset(root)
     counts = {split: len(dataset.split(split)) for split in ("train", "valid", "test")}
     poles = sum(len(s.instances) for s in dataset.samples)
@@ -193,9 +205,6 @@ def _starting_conf(model: str) -> float | None:
     metadata), else none."""
     if _start_weights(model) != SHIPPED_WEIGHTS:
         return None
-    from detector.model_files import read_info
-    from naoslam.shipped import OPERATING_CONF_KEY, shipped_model
-
     return read_info(shipped_model()).extra.get(OPERATING_CONF_KEY)
 
 
@@ -203,8 +212,6 @@ def _train(ledger: StageLedger, name: str, key: str, data: Path, run: Path, mode
            budget: Budget, hours: float | None, seed: int) -> dict:
     """Train from ``weights`` for at most ``hours`` (None: the budget's epochs), resuming an interrupted run of the
     same stage; other leftovers are started afresh."""
-    from detector.training.train import TrainSettings, summarise_run, train_model
-
     previous = ledger.previous(name)
     resume = bool(previous and previous.key == key and (run / "weights" / "last.pt").is_file())
     if run.exists() and not resume:
@@ -219,8 +226,6 @@ def _train(ledger: StageLedger, name: str, key: str, data: Path, run: Path, mode
 
 
 def _export(weights: Path, onnx: Path, budget: Budget, data: Path) -> dict:
-    from export.run import ExportJob, run_export
-
     report = run_export(ExportJob(weights, onnx, budget.export_hw, data, int8=True, force=True))
     if report["int8_problems"]:
         console.print(f"[yellow]INT8 copy differs from FP32: {'; '.join(report['int8_problems'])}")
@@ -228,11 +233,6 @@ def _export(weights: Path, onnx: Path, budget: Budget, data: Path) -> dict:
 
 
 def _calibrate(folder: Path, models: list[Path], budget: Budget, seed: int) -> dict:
-    from calibration.run import embed_calibration, run_calibration
-    from detector.model_files import load_calibration
-    from detector.synth.generate import SynthJob, generate_dataset
-    from export.onnx_export import int8_path
-
     shots = generate_dataset(folder / "shots", SynthJob(budget.calibration_shots, seed + 1, calibration_shots=True),
                              force=True)
     # Measure the masks the model finds, as the thesis measured YOLO's: the laws then absorb the model's own bias.
@@ -254,14 +254,6 @@ def _evaluate(folder: Path, models: list[Path], data: Path, calibration_json: Pa
     into ``folder``, replaced whole (no overlay of an earlier run stays beside this one's). ``against_shipped``: the
     first model's F1 less the shipped model's on the same test frames, with its 95 % interval over frames: what the
     training bought."""
-    from detector.model_files import load_calibration
-    from detector.outputs import stage_folder
-    from detector.evaluation.paired import REFERENCE, f1_difference
-    from detector.evaluation.predictors import make_predictor
-    from detector.evaluation.run import evaluate
-    from export.onnx_export import int8_path
-    from detector.atomic import write_json
-
     calibration = load_calibration(calibration_json)
     conf, conf_source = budget.conf, "the thesis's"
     with stage_folder(folder, (data,), "evaluation") as tmp:
@@ -297,16 +289,6 @@ def operating_threshold(validation: dict, starting_conf: float | None) -> tuple[
 
 
 def _slam(folder: Path, model: Path, calibration_json: Path, budget: Budget, conf: float, seed: int) -> dict:
-    from detector.model_files import load_calibration
-    from detector.outputs import stage_folder
-    from detector.slam.comparison import BACKENDS, compare_backends
-    from detector.slam.outputs import write_outputs
-    from detector.slam.sequences import FrontEndSpec, image_sequences, sim_sequence
-    from detector.atomic import write_json
-    from naoslam.ekf_slam import SlamConfig
-    from naoslam.runner import run_slam
-    from naoslam.sim import SimConfig
-
     calibration = load_calibration(calibration_json)
     sim = SimConfig(duration_s=budget.walk_seconds, seed=seed)
     chosen = SlamConfig()

@@ -12,20 +12,36 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from augment.run import augment_dataset
 from detector.atomic import write_json
 from detector.console import make_console
-from detector.evaluation.paired import REFERENCE
-from detector.finetune.judge import RENDERED_SETS, compare_models, render_set
-from detector.finetune.recipe import DEFAULT_BLEND_SHARE, SIGN_TEST_LEVEL, FinetuneRecipe
+from detector.datasets.intake import open_dataset
+from detector.datasets.io import DatasetWriter, load_dataset
 from detector.datasets.model import BAD_INPUT_ERRORS
 from detector.errors import keep_on_interrupt
-from detector.evaluation.predictors import Predictor
+from detector.evaluation.paired import REFERENCE
+from detector.evaluation.predictors import Predictor, TorchPredictor
+from detector.finetune import crop_network
+from detector.finetune.blend import choose_blend
+from detector.finetune.intake import prepare_export
+from detector.finetune.judge import RENDERED_SETS, compare_models, render_set
+from detector.finetune.recipe import DEFAULT_BLEND_SHARE, SIGN_TEST_LEVEL, FinetuneRecipe
+from detector.finetune.report import write_report
+from detector.model_files import add_metadata, read_checkpoint, read_info
 from detector.outputs import check_placement
 from detector.stages import StageFailed, StageLedger, file_fingerprint, stage_key
 from detector.synth.backdrops import scan_backdrops
-from naoslam.shipped import OPERATING_CONF_KEY
+from detector.synth.generate import SynthJob, generate_dataset
+from detector.synth.scene import SceneConfig
+from detector.synth.team_paint import measure_team_paint
+from detector.training.soup import blend_checkpoints
+from detector.training.train import TrainSettings, summarise_run, train_model, trained_minutes
+from export.onnx_export import int8_path
+from export.run import ExportJob, run_export
+from naoslam.shipped import OPERATING_CONF_KEY, resolve_model
 
 console = make_console()
+
 
 def run_finetune(export: Path, out: Path, recipe: FinetuneRecipe, renames: dict[str, str] | None = None) -> dict:
     """Run every stage into ``out`` (an earlier fine-tune's folder resumes it); returns the results of each stage.
@@ -49,8 +65,6 @@ def run_finetune(export: Path, out: Path, recipe: FinetuneRecipe, renames: dict[
         raise
     results["seconds"] = {record.name: round(record.seconds, 1) for record in ledger.timings()}
     results["wall_seconds_this_call"] = round(time.perf_counter() - start, 1)
-    from detector.finetune.report import write_report
-
     results["report"] = str(write_report(out / "report.html", results, ledger.timings()))
     write_json(out / "metrics.json", {key: value for key, value in results.items() if key != "recipe"}
                | {"recipe": recipe.settings()})
@@ -60,8 +74,6 @@ def run_finetune(export: Path, out: Path, recipe: FinetuneRecipe, renames: dict[
 def _check_run_folder(out: Path, export: Path) -> None:
     """Refuse an ``out`` that overlaps the export (any folder it is read from) or lies inside a dataset, or is not a
     new, empty or earlier fine-tune's folder."""
-    from detector.datasets.intake import open_dataset
-
     try:
         inputs = open_dataset(export, progress=False).input_folders()
     except BAD_INPUT_ERRORS:  # the export stage says what is wrong with it
@@ -78,9 +90,6 @@ def _export_fingerprint(export: Path) -> str:
 
 def _stages(ledger: StageLedger, export: Path, out: Path, recipe: FinetuneRecipe, renames: dict[str, str],
             backdrops: tuple[Path, ...]) -> dict:
-    from augment.run import augment_dataset
-    from detector.finetune.intake import prepare_export
-
     data, augmented, rehearsal, mixed = (out / name for name in ("export", "augmented", "rehearsal", "mixed"))
     results: dict = {"recipe": recipe.settings()}
     key = stage_key(export=_export_fingerprint(export), renames=renames, seed=recipe.seed)
@@ -120,8 +129,6 @@ def _stages(ledger: StageLedger, export: Path, out: Path, recipe: FinetuneRecipe
 
 
 def _measure_paint(data: Path, out: Path) -> dict:
-    from detector.synth.team_paint import measure_team_paint
-
     paint = measure_team_paint(data).as_json()
     write_json(out / "paint.json", paint)
     return paint
@@ -131,9 +138,6 @@ def _render_rehearsal(folder: Path, paint: dict, frames: int, recipe: FinetuneRe
                       backdrops: tuple[Path, ...]) -> dict:
     """Render the rehearsal frames, ``own_paint_share`` of them in the team's paint and ``backdrop_share`` over
     ``backdrops`` when there are any; none (and the folder removed) when the recipe mixes none."""
-    from detector.synth.generate import SynthJob, generate_dataset
-    from detector.synth.scene import SceneConfig
-
     if not frames:
         shutil.rmtree(folder, ignore_errors=True)
         return {"frames": 0}
@@ -149,8 +153,6 @@ def _render_rehearsal(folder: Path, paint: dict, frames: int, recipe: FinetuneRe
 def _mix(augmented: Path, rehearsal: Path | None, out: Path) -> dict:
     """The training set: the augmented export's train frames and every rehearsal frame; the export's valid frames
     (never its test frames) to validate on. Images are linked, not copied."""
-    from detector.datasets.io import DatasetWriter, load_dataset
-
     team = load_dataset(augmented)
     rendered = load_dataset(rehearsal).samples if rehearsal is not None else []
     with DatasetWriter(out, force=True, protect=team.input_folders()) as writer:
@@ -170,12 +172,7 @@ def _train(key: str, data: Path, run: Path, recipe: FinetuneRecipe, spent_minute
     beside the run folder) resumes from its last epoch with what is left of its minutes, a finished one is kept. The
     final weights are the fine-tune: a valid split of a few frames cannot choose an epoch. The robot's crop network
     trains in a minute or two and starts again instead."""
-    from detector.model_files import read_checkpoint
-    from detector.training.train import TrainSettings, summarise_run, train_model, trained_minutes
-
     if recipe.start.network == "crops":
-        from detector.finetune import crop_network
-
         shutil.rmtree(run, ignore_errors=True)
         minutes = recipe.training_minutes(spent_minutes)
         console.print(f"training the crop network for at most {recipe.epoch_cap} epochs or {minutes:.1f} minutes")
@@ -208,31 +205,20 @@ def _train(key: str, data: Path, run: Path, recipe: FinetuneRecipe, spent_minute
 def _starting_metadata(recipe: FinetuneRecipe) -> dict:
     """The starting model's ONNX metadata (range calibration, operating threshold), which the fine-tune is judged
     at and ships with."""
-    from detector.model_files import read_info
-    from naoslam.shipped import resolve_model
-
     return read_info(resolve_model(recipe.start.shipped)).extra
 
 
 def judging_predictor(recipe: FinetuneRecipe) -> Callable[[Path], Predictor]:
     """How a checkpoint of the starting model's network is run to be judged."""
     if recipe.start.network == "crops":
-        from detector.finetune.crop_network import predictor
-
-        return predictor
-    from detector.evaluation.predictors import TorchPredictor
-
+        return crop_network.predictor
     return lambda weights: TorchPredictor(weights, recipe.training_size)
 
 
 def _blend(finetuned: Path, data: Path, folder: Path, conf: float, recipe: FinetuneRecipe) -> dict:
-    from detector.finetune.blend import choose_blend
-
     if recipe.start.network == "crops":
-        from detector.finetune.crop_network import blend
+        blend = crop_network.blend
     else:
-        from detector.training.soup import blend_checkpoints
-
         def blend(first: Path, second: Path, share: float, out: Path) -> Path:
             return blend_checkpoints(first, second, share, out, force=True)
 
@@ -246,15 +232,9 @@ def _export_model(weights: Path, model: Path, data: Path, mixed: Path, recipe: F
     verified against PyTorch on the export's frames, carrying the starting model's operating threshold and its range
     calibration (where the input width is the one that calibration was measured at; at another width the masks read
     other sizes, and `poles calibrate` must measure them)."""
-    from detector.model_files import add_metadata
-    from export.onnx_export import int8_path
-    from export.run import ExportJob, run_export
-
     start = recipe.start
     if start.network == "crops":
-        from detector.finetune.crop_network import export
-
-        return export(weights, model)
+        return crop_network.export(weights, model)
     report = run_export(ExportJob(weights, model, None, data, int8=start.int8, calib_data=mixed if start.int8 else None,
                                   force=True))
     written = [model, int8_path(model)] if start.int8 else [model]
@@ -276,8 +256,6 @@ def _export_model(weights: Path, model: Path, data: Path, mixed: Path, recipe: F
 def _evaluate(folder: Path, data: Path, finetuned: Path, blend: dict, conf: float, recipe: FinetuneRecipe) -> dict:
     """Shipped model, fine-tune and chosen blend on the held-out frames (test split, else valid) and on fresh
     rendered sets, at the shipped threshold."""
-    from detector.datasets.io import load_dataset
-
     shutil.rmtree(folder, ignore_errors=True)
     held_out = "test" if load_dataset(data).split("test") else "valid"
     sets = {f"your {held_out} frames": (data, held_out)}
