@@ -78,14 +78,13 @@ def _share(hit: int, total: int) -> str:
 def main() -> None:
     sys.path.insert(0, str(Path(__file__).parent))
     sys.path.insert(0, str(REPOSITORY))
-    from bench_robot_table import SETS, fresh_set
+    from bench_robot_table import fresh_sets
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sets", type=Path, default=REPOSITORY / "runs" / "robot-table")
     parser.add_argument("--frames", type=int, default=400)
     args = parser.parse_args()
-    sets = {name: fresh_set(args.sets / f"fresh-{seed}", seed, backdrops, far, args.frames)
-            for name, seed, backdrops, far in SETS}
+    sets = fresh_sets(args.sets, args.frames)
     sets[BACKLIT[0]] = backlit_set(args.sets / f"fresh-{BACKLIT[1]}", args.frames // 2)
     rows = [(f"{name}, {'with' if pose else 'without'} pose", candidate_recall(folder, pose))
             for name, folder in sets.items() for pose in (True, False)]

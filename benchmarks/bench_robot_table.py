@@ -43,6 +43,12 @@ def fresh_set(folder: Path, seed: int, backdrop_share: float, far_share: float, 
     return generate_dataset(folder, job, split="test")
 
 
+def fresh_sets(folder: Path, frames: int) -> dict[str, Path]:
+    """Every set of ``SETS`` by name, rendered once under ``folder``."""
+    return {name: fresh_set(folder / f"fresh-{seed}", seed, backdrops, far, frames)
+            for name, seed, backdrops, far in SETS}
+
+
 def scores(model: str, dataset_root: Path, use_pose: bool) -> dict:
     """Every frame of the dataset through the front end at its operating threshold, matched by box IoU."""
     from detector.datasets.io import load_dataset
@@ -93,8 +99,7 @@ def main() -> None:
     args = parser.parse_args()
     models = [("two-stage", args.model)] + ([("robot-p4-seg (before)", args.before)] if args.before else []) + \
         [("accurate (yardstick)", "shipped-int8")]
-    sets = {name: fresh_set(args.sets / f"fresh-{seed}", seed, backdrops, far, args.frames)
-            for name, seed, backdrops, far in SETS}
+    sets = fresh_sets(args.sets, args.frames)
     real = SHARED / "real-poles"
     figures = {label: {"sets": {name: scores(model, folder, True) for name, folder in sets.items()},
                        "real": scores(model, real, False) if (real / "data.yaml").is_file() else None,

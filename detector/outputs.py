@@ -37,7 +37,7 @@ def check_output_folder(out: str | Path, force: bool, inputs: Iterable[Path], ki
     out = Path(out).resolve()
     if out.exists() and not out.is_dir():
         raise FileExistsError(f"--out {out} is a file: give a folder")
-    _refuse_placement(out, inputs)
+    check_placement(out, inputs)
     if out.exists() and any(out.iterdir()):
         if not force:
             raise FileExistsError(f"{out} exists and is not empty: choose another --out or pass --force to replace it")
@@ -51,7 +51,7 @@ def check_output_file(out: str | Path, force: bool, inputs: Iterable[Path]) -> P
     out = Path(out).resolve()
     if out.is_dir():
         raise IsADirectoryError(f"{out} is a folder: give a file name")
-    _refuse_placement(out, inputs)
+    check_placement(out, inputs)
     if out.exists() and not force:
         raise FileExistsError(f"{out} exists - pick another name or add --force to replace it")
     return out
@@ -71,7 +71,7 @@ def stage_folder(folder: str | Path, inputs: Iterable[Path], kind: str) -> Itera
     """A stage's subfolder of a resumable run's own folder, written whole and replacing the stage's earlier one
     (files and all: the run owns it); it may still never overlap an input."""
     folder = Path(folder).resolve()
-    _refuse_placement(folder, inputs)
+    check_placement(folder, inputs)
     with atomic_folder(folder) as tmp:
         yield tmp
         mark_output(tmp, kind)
@@ -97,14 +97,10 @@ def fresh_path(path: Path) -> Path:
     return candidate
 
 
-def check_placement(out: Path, inputs: Iterable[Path]) -> None:
+def check_placement(out: str | Path, inputs: Iterable[Path]) -> None:
     """Refuse an output under a file, overlapping an input, or inside a dataset poles is not writing (a resumable
-    run folder checks this, then keeps what is inside itself)."""
-    _refuse_placement(Path(out).resolve(), inputs)
-
-
-def _refuse_placement(out: Path, inputs: Iterable[Path]) -> None:
-    """Refuse an output under a file, overlapping an input, or inside a dataset poles is not writing."""
+    run folder checks only this, then keeps what is inside itself)."""
+    out = Path(out).resolve()
     parent = next((folder for folder in out.parents if folder.exists()), None)
     if parent is not None and not parent.is_dir():
         raise NotADirectoryError(f"--out {out}: {parent} is a file, so nothing can be written under it - choose a "

@@ -18,7 +18,7 @@ from naoslam.candidates import MAX_CANDIDATES, CandidateFinder, window_around_bo
 from naoslam.crops import crop_batch, to_frame
 from naoslam.detections import Detection
 from naoslam.engines import OpenVinoForward
-from naoslam.ground import GroundView, ground_gate
+from naoslam.ground import GroundView
 from naoslam.model_info import ModelInfo
 from naoslam.pole_model import PoleModel, check_options
 from naoslam.shipped import DEFAULT_CONF, resolve_model
@@ -82,24 +82,17 @@ class CropDetector(PoleModel):
                  view: GroundView | None = None) -> list[Detection]:
         """Detections in one frame, best first; with the camera's pose (or the frame's ground ``view``), only the
         band below the horizon is searched and the ground-plane gate drops what cannot stand on the floor."""
-        if view is None and camera_pose is not None:
-            view = self.ground_view(frame.shape[:2], camera_pose)
+        view = self.view_of(frame.shape[:2], camera_pose, view)
         self.candidates = self.finder(frame, view)
-        self.gate_rejections = []
         if not self.candidates:
-            return []
+            return self.gated([], view)
         frame_hw = frame.shape[:2]
         windows = np.array([c.window for c in self.candidates])
         out = self.run(frame, windows)
         boxes = self.frame_boxes(out, windows, frame_hw)
         if self.refine:
             out, boxes = self._refined(frame, out, boxes)
-        detections = self.decode(out, boxes)
-        if view is None:
-            return detections
-        kept, self.gate_rejections = ground_gate(view, detections)
-        self.gate_rejected += len(self.gate_rejections)
-        return kept
+        return self.gated(self.decode(out, boxes), view)
 
     def run(self, frame: np.ndarray, windows: np.ndarray) -> np.ndarray:
         """The network's answers for these windows of the frame."""

@@ -19,7 +19,7 @@ from naoslam.colour_filter import ColourFilter
 from naoslam.detections import Detection, mask_centre_column, rotated_box_of_mask
 from naoslam.engines import OpenVinoForward
 from naoslam.frames import bgr_frame
-from naoslam.ground import GroundView, ground_gate
+from naoslam.ground import GroundView
 from naoslam.landmarks import CLASSES
 from naoslam.model_info import ModelInfo
 from naoslam.crop_detector import CropDetector, is_crop_model
@@ -183,20 +183,14 @@ class LandmarkDetector(PoleModel):
         ``view``: the frame's ground view when the caller has built it already (``FrontEnd`` shares one per frame).
         """
         frame = bgr_frame(frame)
-        if view is None and camera_pose is not None:
-            view = self.ground_view(frame.shape[:2], camera_pose)
+        view = self.view_of(frame.shape[:2], camera_pose, view)
         top = view.band_top() if view is not None and crop and self.any_input_size else 0
         band = frame[top:]
         blob, box = self.prepare(band, self.band_input_hw(frame.shape[:2], band.shape[0]) if top else None)
         detections = self.decode(self.forward(blob), box)
         if top:
             detections = [_shifted(d, top) for d in detections]
-        self.gate_rejections = []
-        if view is None:
-            return detections
-        kept, self.gate_rejections = ground_gate(view, detections)
-        self.gate_rejected += len(self.gate_rejections)
-        return kept
+        return self.gated(detections, view)
 
     def decode(self, outputs: list[np.ndarray], box: Letterbox) -> list[Detection]:
         """Confidence filter, class-aware NMS and masks, as Ultralytics' ``non_max_suppression`` + native masks."""

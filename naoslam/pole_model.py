@@ -9,7 +9,7 @@ import onnxruntime as ort
 from naoslam.engines import ENGINES
 from naoslam.camera import NAO_HFOV_DEG, CameraPose, PinholeCamera
 from naoslam.cores import usable_cores
-from naoslam.ground import GroundView
+from naoslam.ground import GroundView, ground_gate
 from naoslam.measurement import RangeCalibration
 from naoslam.model_info import ModelInfo
 from naoslam.shipped import OPERATING_CONF_KEY, model_argument, shipped_model
@@ -131,6 +131,23 @@ class PoleModel:
                              f"(input_width={measured}, --imgsz {measured}) or calibrate at {width} "
                              f"(`poles calibrate --model {model_argument(self.path)} --imgsz {width}`)")
         return calibration
+
+    def view_of(self, frame_hw: tuple[int, int], camera_pose: CameraPose | None,
+                view: GroundView | None) -> GroundView | None:
+        """The frame's ground view: ``view`` when the caller built it, else one from ``camera_pose`` (None without)."""
+        if view is None and camera_pose is not None:
+            return self.ground_view(frame_hw, camera_pose)
+        return view
+
+    def gated(self, detections: list, view: GroundView | None) -> list:
+        """``detections`` the ground-plane gate keeps (all of them without a view); ``gate_rejections`` holds this
+        frame's rejected ones with the reason, ``gate_rejected`` counts them over all frames."""
+        self.gate_rejections = []
+        if view is None:
+            return detections
+        kept, self.gate_rejections = ground_gate(view, detections)
+        self.gate_rejected += len(self.gate_rejections)
+        return kept
 
     def ground_view(self, frame_hw: tuple[int, int], camera_pose: CameraPose) -> GroundView:
         """The floor as this detector's camera sees it in a frame of ``frame_hw`` from ``camera_pose``."""
