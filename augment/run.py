@@ -16,9 +16,29 @@ from detector.datasets.io import DatasetWriter
 from detector.datasets.model import Instance, Sample
 from detector.parallel import default_workers, ordered_map
 from detector.preview import contact_sheet, draw_instances
+from detector.records import JsonRecord
 
 #: Originals shown in ``augment_preview.png``, each beside at most ``PREVIEW_COPIES`` of its copies.
 PREVIEW_ORIGINALS, PREVIEW_COPIES = 4, 3
+
+
+@dataclass(frozen=True)
+class AugmentSummary(JsonRecord):
+    """What ``poles augment`` wrote (also ``augment.json`` in its output)."""
+
+    copies: int
+    seed: int
+    config: AugmentConfig
+    train_images_in: int
+    train_images_out: int
+    #: Labelled poles of the originals that were copied, the poles the copies kept and those clipped away.
+    instances_into_copies: int
+    instances_kept: int
+    instances_dropped: int
+    #: How often each operation was drawn.
+    operations: dict[str, int]
+    #: The contact sheet of originals and copies, when one was asked for.
+    preview: Path | None = None
 
 
 @dataclass(frozen=True)
@@ -54,16 +74,16 @@ def _augment_sample(task: _Task) -> list[_Copy]:
 
 def augment_dataset(data: str | Path, out: str | Path, *, copies: int = THESIS_COPIES, seed: int = 0,
                     config: AugmentConfig = AugmentConfig(), preview: bool = False, force: bool = False,
-                    workers: int | None = None, progress: bool = True) -> dict:
-    """Write the augmented dataset to ``out`` and return a summary (also written as ``augment.json``)."""
+                    workers: int | None = None, progress: bool = True) -> AugmentSummary:
+    """Write the augmented dataset to ``out``; returns what was written (also ``augment.json`` there)."""
     if copies < 0:
         raise ValueError(f"--copies must be 0 or more, not {copies}")
     dataset = open_dataset(data, progress=progress)
     train = dataset.split("train")
     if not train:
         raise ValueError(f"{dataset.root}: the train split is empty: nothing to augment")
-    summary = {"copies": copies, "seed": seed, "config": config.as_dict(), "train_images_in": len(train),
-               "instances_into_copies": 0, "instances_kept": 0, "instances_dropped": 0, "operations": Counter()}
+    into = kept = dropped = 0
+    operations: Counter[str] = Counter()
     tiles, preview_columns = [], 1 + min(copies, PREVIEW_COPIES)
     tasks = (_Task(sample, index, copies, seed, config) for index, sample in enumerate(train))
     with DatasetWriter(out, force=force, protect=dataset.input_folders()) as writer:
@@ -75,20 +95,21 @@ def augment_dataset(data: str | Path, out: str | Path, *, copies: int = THESIS_C
         for sample, made in augmented:
             for copy in made:
                 writer.add("train", copy.filename, copy.jpeg, copy.instances)
-                summary["instances_into_copies"] += len(sample.instances)
-                summary["instances_kept"] += len(copy.instances)
-                summary["instances_dropped"] += copy.dropped
-                summary["operations"].update(copy.operations)
+                into += len(sample.instances)
+                kept += len(copy.instances)
+                dropped += copy.dropped
+                operations.update(copy.operations)
             if preview and len(tiles) < PREVIEW_ORIGINALS * preview_columns and sample.instances:
                 tiles += _preview_row(sample, made, preview_columns)
         truth = dataset.root / "annotations.json"  # per-image truth of the originals (copies have none)
         if truth.is_file():
             writer.write_text(truth.name, truth.read_text(encoding="utf-8"))
-        summary["train_images_out"] = writer.counts["train"]
-        summary["operations"] = dict(summary["operations"])
-        writer.write_json("augment.json", summary)
-    if preview and tiles:
-        summary["preview"] = str(contact_sheet(tiles, writer.out / "augment_preview.png", columns=preview_columns))
+        sheet = writer.out / "augment_preview.png" if preview and tiles else None
+        summary = AugmentSummary(copies, seed, config, len(train), writer.counts["train"], into, kept, dropped,
+                                 dict(operations), sheet)
+        writer.write_json("augment.json", summary.to_json())
+    if sheet is not None:
+        contact_sheet(tiles, sheet, columns=preview_columns)
     return summary
 
 

@@ -77,8 +77,8 @@ def main(minutes: list[float]) -> None:
                     continue
                 m = evaluate(TorchPredictor(snapshots[mark]), data, Path(tmp) / f"eval-{start}-{mark}", "test", 0.5,
                              progress=False)
-                print(f"{start:>8} after {mark:g} min: mask mAP50 {m.get('map50', 0):.3f}, precision "
-                      f"{m['precision']:.1%}, recall {m['recall']:.1%} (test split, conf 0.5)", flush=True)
+                print(f"{start:>8} after {mark:g} min: mask mAP50 {m.map.map50 if m.map else 0:.3f}, precision "
+                      f"{m.precision:.1%}, recall {m.recall:.1%} (test split, conf 0.5)", flush=True)
 
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared"
@@ -162,33 +162,35 @@ def real_mode(argv: list[str]) -> None:
             folder = root / name.split()[0]
             shutil.rmtree(folder, ignore_errors=True)
             export = group_export(real, GROUPS[train_group], GROUPS[test_group], folder / "export")
-            results = run_finetune(export, folder / "run", recipe)
-            timings[name] = results["seconds"]
-            group_rows = results["evaluate"]["rows"]
+            result = run_finetune(export, folder / "run", recipe)
+            timings[name] = result.seconds
+            stages = result.stages
+            group_rows = list(stages.evaluate.rows)
             if other_rooms:
-                models = {REFERENCE: recipe.start.weights, "fine-tune": Path(results["train"]["weights"]),
-                          group_rows[-1]["model"]: Path(results["blend"]["weights"])}
+                models = {REFERENCE: recipe.start.weights, "fine-tune": stages.train.weights,
+                          group_rows[-1].model: stages.blend.weights}
                 backdrop_set = render_set(folder / "backdrops", args.frames, 0.0, 9103, other_rooms,
                                           backlight_share=0.5)
                 group_rows += compare_models(models, {"over other rooms, half back-lit": (backdrop_set, "test")},
-                                             folder / "backdrops-evaluation", results["evaluate"]["conf"],
+                                             folder / "backdrops-evaluation", stages.evaluate.conf,
                                              judging_predictor(recipe))
-            rows += [{"group": name, **row} for row in group_rows]
+            rows += [(name, row) for row in group_rows]
         settings = recipe.settings()
         print(f"\nrecipe: {json.dumps(settings)}")
         print(f"{'group':<34} {'set':<32} {'model':<10} {'TP':>4} {'FP':>4} {'FN':>4} {'prec':>7} {'recall':>7} "
               f"{'F1':>6} {'F1 change (95 %)':>22} {'recall <16px':>13}")
-        for r in rows:
-            change = r.get("f1_change")
-            text = (f"{100 * change['difference']:+.1f} ({100 * change['low']:+.1f}..{100 * change['high']:+.1f})"
+        for group, r in rows:
+            change = r.f1_change
+            text = (f"{100 * change.difference:+.1f} ({100 * change.low:+.1f}..{100 * change.high:+.1f})"
                     if change else "-")
-            small = f"{100 * r['recall_under_16px']:.1f} %" if r["recall_under_16px"] is not None else "-"
-            print(f"{r['group']:<34} {r['set']:<32} {r['model']:<10} {r['tp']:>4} {r['fp']:>4} {r['fn']:>4} "
-                  f"{100 * r['precision']:>6.1f}% {100 * r['recall']:>6.1f}% {r['f1']:>6.3f} {text:>22} {small:>13}")
+            small = f"{100 * r.recall_under_16px:.1f} %" if r.recall_under_16px is not None else "-"
+            print(f"{group:<34} {r.set_name:<32} {r.model:<10} {r.counts.tp:>4} {r.counts.fp:>4} {r.counts.fn:>4} "
+                  f"{100 * r.precision:>6.1f}% {100 * r.recall:>6.1f}% {r.f1:>6.3f} {text:>22} {small:>13}")
         for name, seconds in timings.items():
             print(f"{name}: " + ", ".join(f"{stage} {s:.0f} s" for stage, s in seconds.items())
                   + f"; total {sum(seconds.values()) / 60:.1f} min")
-        (root / "bench_finetune_real.json").write_text(json.dumps({"recipe": settings, "rows": rows,
+        written = [{"group": group, **row.to_json()} for group, row in rows]
+        (root / "bench_finetune_real.json").write_text(json.dumps({"recipe": settings, "rows": written,
                                                                    "seconds": timings}, indent=1))
 
 

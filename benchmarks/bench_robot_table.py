@@ -54,7 +54,7 @@ def scores(model: str, dataset_root: Path, use_pose: bool) -> dict:
     from detector.datasets.io import load_dataset
     from detector.datasets.truth import load_camera_poses, load_truth
     from detector.evaluation.by_width import recall_by_width
-    from detector.evaluation.counting import precision_recall, totals
+    from detector.evaluation.counting import totals
     from detector.evaluation.predictors import make_predictor
     from detector.evaluation.run import evaluate_frames
     from naoslam.shipped import DEFAULT_CONF
@@ -69,11 +69,11 @@ def scores(model: str, dataset_root: Path, use_pose: bool) -> dict:
     conf = predictor.operating_conf or DEFAULT_CONF
     counts = totals(images, conf)
     widths = recall_by_width(images, conf)
-    small = [b for b in widths if b["width"] in SMALL_BINS]
-    large = [b for b in widths if b["width"] not in SMALL_BINS]
-    return {**counts, "f1": precision_recall(counts)[2], "conf": conf,
-            "small": [sum(b["found"] for b in small), sum(b["labels"] for b in small)],
-            "large": [sum(b["found"] for b in large), sum(b["labels"] for b in large)]}
+    small = [row for row in widths if row.width in SMALL_BINS]
+    large = [row for row in widths if row.width not in SMALL_BINS]
+    return {**counts.to_json(), "f1": counts.precision_recall()[2], "conf": conf,
+            "small": [sum(row.found for row in small), sum(row.labels for row in small)],
+            "large": [sum(row.found for row in large), sum(row.labels for row in large)]}
 
 
 def training_minutes(model: str) -> str:

@@ -3,9 +3,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import Literal
 
 import numpy as np
 
+from calibration.report import BearingError, CalibrationReport, LawReport, MeanFit, RangeErrors, WalkNoise
 from calibration.samples import SizeSample, as_arrays, measures_law
 from naoslam.camera import NAO_HFOV_DEG
 from naoslam.landmarks import PoleGeometry
@@ -32,13 +34,11 @@ class LawFit:
     samples: int
     per_distance: PowerLaw | None
 
-    def as_dict(self) -> dict:
-        """The fit as JSON-ready numbers: a, b, relative s.d., r^2, sample count (and the per-distance fit)."""
-        out = {"a": self.law.a, "b": self.law.b, "relative_std": self.law.relative_std, "r2": self.r2,
-               "samples": self.samples}
-        if self.per_distance:
-            out["per_distance_mean_fit"] = {"a": self.per_distance.a, "b": self.per_distance.b}
-        return out
+    def report(self, walk: WalkNoise | None = None, walk_too_few: int | None = None) -> LawReport:
+        """The fit as reported, with what a walk's sightings measured of its noise."""
+        mean_fit = MeanFit(self.per_distance.a, self.per_distance.b) if self.per_distance else None
+        return LawReport(self.law.a, self.law.b, self.law.relative_std, self.r2, self.samples, mean_fit, walk,
+                         walk_too_few)
 
 
 def fit_power_law(px: np.ndarray, range_m: np.ndarray) -> tuple[PowerLaw, float]:
@@ -67,7 +67,7 @@ def fit_law(px: np.ndarray, range_m: np.ndarray) -> LawFit:
 
 
 def calibrate(samples: list[SizeSample], geometry: PoleGeometry = PoleGeometry(), hfov_deg: float = NAO_HFOV_DEG,
-              walk_samples: list[SizeSample] | None = None) -> tuple[RangeCalibration, dict]:
+              walk_samples: list[SizeSample] | None = None) -> tuple[RangeCalibration, CalibrationReport]:
     """Fit the width and height laws on on-axis sizes (height only on whole poles), the colour law and the bearing
     noise. Each law's noise is at least a walking robot's: measured on ``walk_samples`` (sightings in a walk's
     frames) when given, else ``WALK_RELATIVE_STD``."""
@@ -79,43 +79,42 @@ def calibrate(samples: list[SizeSample], geometry: PoleGeometry = PoleGeometry()
     width_fit = fit_law(columns["width"], columns["range"])
     height_fit = fit_law(columns["height"][whole], columns["range"][whole])
     upright_ratio = float(np.median(columns["width"][whole] / columns["height"][whole]))
-    report = {"samples": len(samples), "reference_width_px": reference_width, "width": width_fit.as_dict(),
-              "height": height_fit.as_dict(), "upright_ratio": upright_ratio}
-    bearing_std = _bearing_std(samples, hfov_deg, report)
+    bearing_std, bearing_error = _bearing_std(samples, hfov_deg)
     walk = None if walk_samples is None else as_arrays(walk_samples, reference_width, hfov_deg, geometry)
-    colour = _colour_law(columns, report)
-    if colour is not None:
-        colour = _walk_noise(colour, "colour", walk, report, required=False)
-    calibration = RangeCalibration(_walk_noise(width_fit.law, "width", walk, report),
-                                   _walk_noise(height_fit.law, "height", walk, report), reference_width, upright_ratio,
-                                   bearing_std_rad=bearing_std, hfov_deg=hfov_deg, colour_law=colour,
-                                   off_axis_corrected=True, colour_off_axis_corrected=True)
-    report["errors_by_range"] = range_errors(samples, calibration)
+    width_law, width_report = _walk_noise(width_fit, "width", walk)
+    height_law, height_report = _walk_noise(height_fit, "height", walk)
+    colour_fit = _colour_fit(columns)
+    colour_law, colour_report = (None, None) if colour_fit is None else \
+        _walk_noise(colour_fit, "colour", walk, required=False)
+    calibration = RangeCalibration(width_law, height_law, reference_width, upright_ratio, bearing_std_rad=bearing_std,
+                                   hfov_deg=hfov_deg, colour_law=colour_law, off_axis_corrected=True,
+                                   colour_off_axis_corrected=True)
     cut = [s for s in samples if s.partial]
-    if cut:
-        report["errors_cut_by_border"] = method_errors(cut, calibration)
+    report = CalibrationReport(len(samples), reference_width, width_report, height_report, colour_report,
+                               upright_ratio, bearing_error, tuple(range_errors(samples, calibration)),
+                               method_errors(cut, calibration, "cut by the border") if cut else None)
     return calibration, report
 
 
-def _walk_noise(law: PowerLaw, size: str, walk: dict[str, np.ndarray] | None, report: dict,
-                required: bool = True) -> PowerLaw:
+def _walk_noise(fit: LawFit, size: Literal["width", "height", "colour"], walk: dict[str, np.ndarray] | None,
+                required: bool = True) -> tuple[PowerLaw, LawReport]:
     """The fitted law with its relative s.d. raised to at least a walking robot's: the law's spread on the walk's
-    sightings (heights of whole poles only), or ``WALK_RELATIVE_STD`` without them. A walk with too few sightings is
-    refused where the law is ``required``; otherwise (the colour filter, a baseline) it keeps the default."""
+    sightings (heights of whole poles only), or ``WALK_RELATIVE_STD`` without them; and the fit's report. A walk with
+    too few sightings is refused where the law is ``required``; otherwise (the colour filter, a baseline) it keeps
+    the default."""
+    law = fit.law
     keep = None if walk is None else measures_law(walk, size)
     if keep is None or (not required and keep.sum() < MIN_NOISE_SIGHTINGS):
         floor = WALK_RELATIVE_STD[size]
-        if keep is not None:
-            report[size]["walk_too_few"] = int(keep.sum())
+        report = fit.report(walk_too_few=None if keep is None else int(keep.sum()))
     else:
         if keep.sum() < MIN_NOISE_SIGHTINGS:
             raise ValueError(f"--noise-data: {int(keep.sum())} sightings measure the {size} law, at least "
                              f"{MIN_NOISE_SIGHTINGS} needed - add frames of the walk (whole poles for the height law)")
         errors = relative_log_errors(law, walk[size][keep], walk["range"][keep])
         floor = robust_spread(errors)
-        report[size]["walk"] = {"sightings": int(keep.sum()), "relative_std": floor,
-                                "median_log_error": float(np.median(errors))}
-    return replace(law, relative_std=max(law.relative_std, floor))
+        report = fit.report(WalkNoise(int(keep.sum()), floor, float(np.median(errors))))
+    return replace(law, relative_std=max(law.relative_std, floor)), report
 
 
 def relative_log_errors(law: PowerLaw, px: np.ndarray, range_m: np.ndarray) -> np.ndarray:
@@ -129,58 +128,53 @@ def robust_spread(errors: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(errors)))
 
 
-def _colour_law(columns: dict[str, np.ndarray], report: dict) -> PowerLaw | None:
+def _colour_fit(columns: dict[str, np.ndarray]) -> LawFit | None:
     """The colour filter's law: range from its own pixels per cm between the two band centres, on the poles it
     found (None when it found too few at two ranges)."""
     found = measures_law(columns, "colour")
     if len(np.unique(np.round(columns["range"][found], 3))) < 2:
         return None
-    fit = fit_law(columns["colour"][found], columns["range"][found])
-    report["colour"] = fit.as_dict()
-    return fit.law
+    return fit_law(columns["colour"][found], columns["range"][found])
 
 
-def _bearing_std(samples: list[SizeSample], hfov_deg: float, report: dict) -> float:
-    """Standard deviation of the pinhole bearing of the mask centre against the true bearing (1 deg if unknown)."""
+def _bearing_std(samples: list[SizeSample], hfov_deg: float) -> tuple[float, BearingError | None]:
+    """Standard deviation of the pinhole bearing of the mask centre against the true bearing (1 deg if unknown),
+    and the errors it was measured from."""
     known = [s for s in samples if s.bearing_rad is not None and s.centre_column is not None]
     if len(known) < 2:
-        return math.radians(1.0)
+        return math.radians(1.0), None
     errors = np.array([bearing_of_column(s.centre_column, s.image_width, hfov_deg) - s.bearing_rad for s in known])
-    report["bearing_error_deg"] = {"mean": float(np.degrees(errors.mean())),
-                                   "std": float(np.degrees(errors.std(ddof=1))),
-                                   "max_abs": float(np.degrees(np.abs(errors).max()))}
-    return float(max(np.sqrt(np.mean(errors ** 2)), math.radians(0.1)))
+    measured = BearingError(float(np.degrees(errors.mean())), float(np.degrees(errors.std(ddof=1))),
+                            float(np.degrees(np.abs(errors).max())))
+    return float(max(np.sqrt(np.mean(errors ** 2)), math.radians(0.1))), measured
 
 
-def range_errors(samples: list[SizeSample], calibration: RangeCalibration) -> list[dict]:
+def range_errors(samples: list[SizeSample], calibration: RangeCalibration) -> list[RangeErrors]:
     """Mean absolute relative range error (%) per distance bin for each way of choosing the range (see
     :func:`method_errors`)."""
     rows = []
     for low, high in zip(RANGE_BINS[:-1], RANGE_BINS[1:]):
         chosen = [s for s in samples if low <= s.range_m < high]
         if chosen:
-            rows.append({"range_m": f"{low:.2f}-{high:.2f}", **method_errors(chosen, calibration)})
+            rows.append(method_errors(chosen, calibration, f"{low:.2f}-{high:.2f}"))
     return rows
 
 
-def method_errors(chosen: list[SizeSample], calibration: RangeCalibration) -> dict:
+def method_errors(chosen: list[SizeSample], calibration: RangeCalibration, label: str = "") -> RangeErrors:
     """Mean absolute relative range error (%) of ``chosen`` for each way of choosing the range. ``foot``: over the
-    poles with a foot-row range (camera pose known, foot in the frame; their count in ``foot_samples``);
-    ``fused+foot``: over all, as ``MeasurementModel`` measures with a pose (the fused box range where there is no
-    foot or it disagrees)."""
-    row: dict = {"samples": len(chosen)}
+    poles with a foot-row range (camera pose known, foot in the frame); ``fused_foot``: over all, as
+    ``MeasurementModel`` measures with a pose (the fused box range where there is no foot or it disagrees)."""
+    by_method = {}
     for method in ("width", "height", "rule", "fused"):
         ranges = [calibration.range_from_box(s.width_px, s.height_px, s.image_width, method, s.centre_column)[0]
                   for s in chosen]
-        errors = [abs(r - s.range_m) / s.range_m for r, s in zip(ranges, chosen)]
-        row[method] = 100 * float(np.mean(errors))
+        by_method[method] = 100 * float(np.mean([abs(r - s.range_m) / s.range_m for r, s in zip(ranges, chosen)]))
     with_foot = [s for s in chosen if s.foot_range_m is not None]
-    row["foot_samples"] = len(with_foot)
+    foot = fused_foot = None
     if with_foot:
-        row["foot"] = 100 * float(np.mean([abs(s.foot_range_m - s.range_m) / s.range_m for s in with_foot]))
-        row["fused+foot"] = 100 * float(np.mean([abs(_with_foot(s, calibration) - s.range_m) / s.range_m
-                                                 for s in chosen]))
-    return row
+        foot = 100 * float(np.mean([abs(s.foot_range_m - s.range_m) / s.range_m for s in with_foot]))
+        fused_foot = 100 * float(np.mean([abs(_with_foot(s, calibration) - s.range_m) / s.range_m for s in chosen]))
+    return RangeErrors(label, len(chosen), **by_method, foot_samples=len(with_foot), foot=foot, fused_foot=fused_foot)
 
 
 def _with_foot(sample: SizeSample, calibration: RangeCalibration) -> float:

@@ -2,17 +2,28 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from calibration.fit import MIN_NOISE_SIGHTINGS, WALK_RELATIVE_STD, calibrate
+from calibration.report import CalibrationReport
 from calibration.samples import MEASURE_CONF, SizeSample, as_arrays, measure_samples, measures_law, open_ranged
 from detector.outputs import check_output_file
 from detector.atomic import write_json
+from detector.records import JsonRecord
 from naoslam.detector import load_detector
 from naoslam.measurement import RangeCalibration
+
+@dataclass(frozen=True)
+class CalibrationResult(JsonRecord):
+    """A fitted calibration, its report and its plot (None when none was asked for)."""
+
+    calibration: RangeCalibration
+    report: CalibrationReport
+    plot: Path | None = None
+
 
 #: The 2024 thesis's laws at 640x480, drawn for comparison.
 THESIS_WIDTH_LAW = (70.057, -1.109)
@@ -21,7 +32,7 @@ THESIS_HEIGHT_LAW = (209.16, -0.965)
 
 def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv: Path | None = None,
                     plot: Path | None = None, embed: Sequence[Path] = (), force: bool = False,
-                    noise_data: Sequence[Path] = (), input_width: int | None = None) -> dict:
+                    noise_data: Sequence[Path] = (), input_width: int | None = None) -> CalibrationResult:
     """Fit from ``data`` and write ``out`` (calibration + report); returns what was written. ``noise_data``: frames
     of a walk with true ranges (e.g. ``poles synth --walk``), measured the same way, set the noise the filter is
     told. ``input_width``: the ``model``'s input width on the robot (None: its own). ``embed``: ONNX models to store
@@ -52,15 +63,15 @@ def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv:
     walk = [s for w in walks for s in measure_samples(w, detector)] if walks else None
     calibration, report = calibrate(samples, walk_samples=walk)
     calibration = replace(calibration, input_width=detector.calibration_width if detector else None)
-    report["source"] = ((f"boxes of {model} at the frames' own pixels" if calibration.input_width is None else
-                         f"masks of {model} at {calibration.input_width} px input") if model else "label masks")
-    report["noise_source"] = (", ".join(str(folder) for folder in noise_data) if noise_data
-                              else "rendered walks with the shipped model at 640 px input (the default; "
-                                   "--noise-data measures your own)")
-    result = {"calibration": calibration.to_dict(), "report": report}
+    source = ((f"boxes of {model} at the frames' own pixels" if calibration.input_width is None else
+               f"masks of {model} at {calibration.input_width} px input") if model else "label masks")
+    noise_source = (", ".join(str(folder) for folder in noise_data) if noise_data
+                    else "rendered walks with the shipped model at 640 px input (the default; --noise-data measures "
+                         "your own)")
+    result = CalibrationResult(calibration, report.with_sources(source, noise_source), plot)
     for target in embed:
         embed_calibration(target, calibration)
-    write_json(out, result)
+    write_json(out, {"calibration": calibration.to_dict(), "report": result.report.to_json()})
     if plot:
         plot_fit(samples, calibration, plot, walk)
     return result
@@ -108,46 +119,44 @@ def plot_fit(samples: list[SizeSample], calibration: RangeCalibration, png: Path
     return save_figure(fig, png)
 
 
-def print_calibration(result: dict) -> None:
+def print_calibration(result: CalibrationResult) -> None:
     """The laws and the per-distance errors as tables."""
     from detector.console import make_console
     from rich.table import Table
 
-    report = result["report"]
-    laws = Table(title=f"range laws from {report['samples']} poles ({report['source']}), "
-                       f"pixels at {report['reference_width_px']} px width")
+    report, calibration = result.report, result.calibration
+    laws = Table(title=f"range laws from {report.samples} poles ({report.source}), "
+                       f"pixels at {report.reference_width_px} px width")
     for column in ("law", "a", "b", "R^2", "relative std", "filter is told", "thesis-style fit (per-range means)"):
         laws.add_column(column)
-    for key in ("width", "height", "colour"):
-        if key in report:
-            fit = report[key]
-            mean_fit = fit.get("per_distance_mean_fit")
-            told = (result["calibration"].get(f"{key}_law") or {}).get("relative_std", fit["relative_std"])
-            laws.add_row(key if key != "colour" else "colour (px per cm)", f"{fit['a']:.4g}", f"{fit['b']:.4f}",
-                         f"{fit['r2']:.4f}", f"{100 * fit['relative_std']:.1f} %", f"{100 * told:.1f} %",
-                         f"{mean_fit['a']:.4g} * x^{mean_fit['b']:.4f}" if mean_fit else "-")
+    told = {"width": calibration.width_law, "height": calibration.height_law, "colour": calibration.colour_law}
+    for key, fit in report.laws().items():
+        mean_fit = fit.per_distance_mean_fit
+        laws.add_row(key if key != "colour" else "colour (px per cm)", f"{fit.a:.4g}", f"{fit.b:.4f}",
+                     f"{fit.r2:.4f}", f"{100 * fit.relative_std:.1f} %", f"{100 * told[key].relative_std:.1f} %",
+                     f"{mean_fit.a:.4g} * x^{mean_fit.b:.4f}" if mean_fit else "-")
     errors = Table(title="mean relative range error by true range (foot: poles with a camera pose and the foot "
                          "in view)")
     for column in ("range (m)", "poles", "width", "height", "thesis rule", "fused", "foot (poles)", "fused+foot"):
         errors.add_column(column, justify="right")
-    cut = report.get("errors_cut_by_border")
-    for row in report["errors_by_range"] + ([dict(cut, range_m="cut by the border")] if cut else []):
-        errors.add_row(row["range_m"], str(row["samples"]),
-                       *(f"{row[m]:.1f} %" for m in ("width", "height", "rule", "fused")),
-                       f"{row['foot']:.1f} % ({row['foot_samples']})" if "foot" in row else "-",
-                       f"{row['fused+foot']:.1f} %" if "fused+foot" in row else "-")
+    cut = (report.errors_cut_by_border,) if report.errors_cut_by_border else ()
+    for row in report.errors_by_range + cut:
+        errors.add_row(row.label, str(row.samples),
+                       *(f"{v:.1f} %" for v in (row.width, row.height, row.rule, row.fused)),
+                       f"{row.foot:.1f} % ({row.foot_samples})" if row.foot is not None else "-",
+                       f"{row.fused_foot:.1f} %" if row.fused_foot is not None else "-")
     console = make_console()
     console.print(laws)
-    walk = {key: report[key]["walk"] for key in WALK_RELATIVE_STD if "walk" in report.get(key, {})}
-    floors = (", ".join(f"{key} {100 * w['relative_std']:.1f} % (median error {100 * w['median_log_error']:+.1f} %, "
-                        f"{w['sightings']} sightings)" for key, w in walk.items()) if walk
+    walk = {key: law.walk for key, law in report.laws().items() if law.walk is not None}
+    floors = (", ".join(f"{key} {100 * w.relative_std:.1f} % (median error {100 * w.median_log_error:+.1f} %, "
+                        f"{w.sightings} sightings)" for key, w in walk.items()) if walk
               else ", ".join(f"{key} {100 * std:.1f} %" for key, std in WALK_RELATIVE_STD.items()))
-    if "walk_too_few" in report.get("colour", {}):
+    if report.colour is not None and report.colour.walk_too_few is not None:
         floors += (f", colour {100 * WALK_RELATIVE_STD['colour']:.1f} % (the default: the colour filter found "
-                   f"{report['colour']['walk_too_few']} poles in the walk, {MIN_NOISE_SIGHTINGS} needed)")
+                   f"{report.colour.walk_too_few} poles in the walk, {MIN_NOISE_SIGHTINGS} needed)")
     console.print(f"the filter is told the larger of each law's residual and a walking robot's noise: {floors}, "
-                  f"measured on {report['noise_source']}")
+                  f"measured on {report.noise_source}")
     console.print(errors)
-    console.print(f"upright width/height ratio {report['upright_ratio']:.3f}"
-                  + (f"; bearing error {report['bearing_error_deg']['mean']:+.2f} +- "
-                     f"{report['bearing_error_deg']['std']:.2f} deg" if "bearing_error_deg" in report else ""))
+    bearing = report.bearing_error_deg
+    console.print(f"upright width/height ratio {report.upright_ratio:.3f}"
+                  + (f"; bearing error {bearing.mean:+.2f} +- {bearing.std:.2f} deg" if bearing else ""))

@@ -10,6 +10,7 @@ import json
 import os
 import shutil
 from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -95,8 +96,32 @@ def detections_to_instances(detections: list[Detection], frame_hw: tuple[int, in
     return instances
 
 
+@dataclass(frozen=True)
+class Prelabels:
+    """What ``poles predict --images`` wrote: frames, poles found, frames without one, at which threshold, where."""
+
+    frames: int
+    poles: int
+    empty: int
+    conf: float
+    out: Path
+
+
+@dataclass(frozen=True)
+class OverlayVideo:
+    """What ``poles predict --video`` wrote: its frames, the video and its contact sheet, and whether ranges were
+    drawn (only where the model's calibration holds at the input width it ran at)."""
+
+    frames: int
+    fps: float
+    video: Path
+    sheet: Path
+    conf: float
+    ranges: bool
+
+
 def prelabel(images: Path, out: Path, model: Path | None = None, conf: float | None = None, fmt: str = "yolov8",
-             force: bool = False, progress: bool = True) -> dict:
+             force: bool = False, progress: bool = True) -> Prelabels:
     """Write pre-annotations for every frame in ``images`` to ``out`` (all in the train split); returns counts.
 
     Frames stream from the source through the model into the writer, one at a time, so a long recording needs the
@@ -105,14 +130,12 @@ def prelabel(images: Path, out: Path, model: Path | None = None, conf: float | N
         raise ValueError(f"--format {fmt!r}: choose yolov8 or coco")
     detector = load_detector(model, conf=conf)
     count, _, frames = frames_in(images, subfolders=True)
-    counts = {"frames": 0, "poles": 0, "empty": 0}
+    poles_per_frame = []
 
     def labelled() -> Iterator[tuple[str, np.ndarray, Path | None, list[Instance]]]:
         for name, frame, path in show_progress(frames, "pre-labelling", "img", total=count, enabled=progress):
             instances = detections_to_instances(detector(frame), frame.shape[:2])
-            counts["frames"] += 1
-            counts["poles"] += len(instances)
-            counts["empty"] += not instances
+            poles_per_frame.append(len(instances))
             yield name, frame, path, instances
 
     protect = Path(images).resolve()
@@ -122,8 +145,8 @@ def prelabel(images: Path, out: Path, model: Path | None = None, conf: float | N
                 writer.add("train", name, path or _jpeg(frame), instances)
     else:
         _write_coco(out, labelled(), force, protect)
-    return {**counts, "conf": detector.conf, "model": str(detector.path), "format": fmt,
-            "out": str(Path(out).resolve())}
+    return Prelabels(len(poles_per_frame), sum(poles_per_frame), poles_per_frame.count(0), detector.conf,
+                     Path(out).resolve())
 
 
 def _jpeg(frame: np.ndarray) -> bytes:
@@ -155,7 +178,7 @@ def _write_coco(out: Path, labelled: Iterable[tuple[str, np.ndarray, Path | None
 
 
 def overlay_video(source: Path, out: Path, model: Path | None = None, conf: float | None = None,
-                  force: bool = False, progress: bool = True, input_width: int | None = None) -> dict:
+                  force: bool = False, progress: bool = True, input_width: int | None = None) -> OverlayVideo:
     """Write ``out`` (MP4, one frame per input frame, at the input's size) and ``out`` with ``.png`` (contact sheet).
 
     ``input_width`` runs the model smaller, as a slower robot would; ranges are drawn only where the model's
@@ -196,8 +219,7 @@ def overlay_video(source: Path, out: Path, model: Path | None = None, conf: floa
             writer.release()
         tmp.unlink(missing_ok=True)
     sheet = contact_sheet(tiles, out.with_suffix(".png"), columns=SHEET_COLUMNS, tile_width=SHEET_TILE_WIDTH)
-    return {"frames": written, "fps": fps, "video": str(out), "sheet": str(sheet), "conf": detector.conf,
-            "ranges": front_end is not None}
+    return OverlayVideo(written, fps, out, sheet, detector.conf, front_end is not None)
 
 
 def draw_detections(frame: np.ndarray, detections: list[Detection], measurements: list[Measurement]) -> np.ndarray:

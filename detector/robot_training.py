@@ -8,7 +8,7 @@ import json
 import os
 import platform
 import time
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from detector.crops.curves import plot_crop_history
@@ -16,7 +16,7 @@ from detector.crops.export import export_crop_network
 from detector.crops.network import CROP_SIZE_WH
 from detector.crops.samples import NO_POLE, CropSet, crops_of_dataset
 from detector.crops.settings import CropTrainSettings
-from detector.crops.train import load_checkpoint, save_checkpoint, train_crop_network
+from detector.crops.train import EpochResult, load_checkpoint, save_checkpoint, train_crop_network
 from detector.datasets.io import load_dataset
 from detector.outputs import check_output_folder, output_folder
 from detector.datasets.truth import load_camera_poses, load_truth
@@ -24,6 +24,7 @@ from detector.evaluation.counting import best_threshold, confidence_sweep
 from detector.evaluation.predictors import RuntimePredictor
 from detector.evaluation.run import evaluate_frames
 from detector.model_files import add_metadata
+from detector.records import JsonRecord
 
 #: The files a run folder holds.
 CHECKPOINT, MODEL = "poles-robot.pt", "poles-robot.onnx"
@@ -60,12 +61,34 @@ def valid_threshold(model: Path, data: list[Path], progress: bool = True) -> tup
                                   progress, poses=load_camera_poses(dataset))
     sweep = confidence_sweep(images)
     threshold = best_threshold(sweep) or EXPORT_CONF
-    return threshold, max(row["f1"] for row in sweep)
+    return threshold, max(point.f1 for point in sweep)
+
+
+@dataclass(frozen=True)
+class RobotTraining(JsonRecord):
+    """What ``poles train-robot`` made: the crops it learnt from, its best epoch, the ONNX model and its threshold."""
+
+    data: tuple[Path, ...]
+    train_crops: int
+    valid_crops: int
+    pole_crops: int
+    best_epoch: EpochResult
+    epochs: int
+    minutes: float
+    #: Largest output difference between the ONNX model and PyTorch on valid crops.
+    onnx_difference: float
+    #: Best-F1 threshold on the valid frames, and that F1.
+    operating_conf: float
+    valid_f1: float
+    settings: CropTrainSettings
+    #: The checkpoint it started from (None: from scratch).
+    weights: Path | None
+    model: Path
 
 
 def train_robot_front_end(data: list[Path], out: Path, settings: CropTrainSettings = CropTrainSettings(),
                           weights: Path | None = None, force: bool = False, protect: tuple[Path, ...] = (),
-                          progress: bool = True) -> dict:
+                          progress: bool = True) -> RobotTraining:
     """Train the crop network on ``data`` into the run folder ``out``; returns its summary (also in history.json)."""
     data = [Path(root) for root in data]
     inputs = (*protect, *(folder for root in data for folder in load_dataset(root).input_folders()))
@@ -88,11 +111,9 @@ def train_robot_front_end(data: list[Path], out: Path, settings: CropTrainSettin
         add_metadata(folder / MODEL, operating_conf=threshold, training=training)
         plot_crop_history(history, folder / "training_curves.png")
         best = max(history, key=lambda h: h.score)
-        summary = {"data": [str(d) for d in data], "train_crops": len(train), "valid_crops": len(valid),
-                   "pole_crops": int((train.classes != NO_POLE).sum()), "best_epoch": asdict(best),
-                   "epochs": len(history), "minutes": round(sum(h.seconds for h in history) / 60, 2),
-                   "onnx_difference": difference, "operating_conf": threshold, "valid_f1": f1,
-                   "settings": asdict(settings), "weights": str(weights) if weights else None}
-        (folder / "history.json").write_text(json.dumps({**summary, "history": [asdict(h) for h in history]},
-                                                        indent=1))
-    return {**summary, "model": str(Path(out) / MODEL)}
+        summary = RobotTraining(tuple(data), len(train), len(valid), int((train.classes != NO_POLE).sum()), best,
+                                len(history), round(sum(h.seconds for h in history) / 60, 2), float(difference),
+                                float(threshold), float(f1), settings, weights, Path(out) / MODEL)
+        epochs = [asdict(h) for h in history]
+        (folder / "history.json").write_text(json.dumps({**summary.to_json(), "history": epochs}, indent=1))
+    return summary

@@ -1,7 +1,8 @@
 """Resumable stages: each stage's inputs are hashed; a stage that finished with the same inputs is skipped.
 
-The ledger (``stages.json`` in the run folder) records per stage its key, status, time taken and a summary of
-what it produced. A failed stage is recorded with its error and stops the run; everything before it stays.
+The ledger (``stages.json`` in the run folder) records per stage its key, status, time taken and its result (a
+``JsonRecord``), which a skipped stage hands back as the same type. A failed stage is recorded with its error and stops
+the run; everything before it stays.
 """
 from __future__ import annotations
 
@@ -11,10 +12,13 @@ import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from detector.atomic import write_json
 from detector.datasets.model import BAD_INPUT_ERRORS
+from detector.records import JsonRecord, RecordMismatch
+
+Result = TypeVar("Result", bound=JsonRecord)
 
 
 class StageFailed(RuntimeError):
@@ -77,30 +81,44 @@ class StageLedger:
     def previous(self, name: str) -> StageRecord | None:
         return self.records.get(name)
 
-    def run(self, name: str, key: str, outputs: list[Path], work: Callable[[], dict]) -> dict:
-        """Run ``work`` unless stage ``name`` is recorded done with ``key`` and its outputs exist."""
+    def run(self, name: str, key: str, outputs: list[Path], work: Callable[[], Result],
+            result: type[Result]) -> Result:
+        """Run ``work`` unless stage ``name`` is recorded done with ``key``, its outputs exist and its recorded
+        result reads back as a ``result``; returns the stage's result."""
         self.order.append(name)
-        record = self.records.get(name)
-        if record and record.status == "done" and record.key == key and all(Path(p).exists() for p in outputs):
-            record.ran = False
-            self.announce(f"[{len(self.order)}] {name}: up to date, skipped (took {record.seconds:.0f} s before)")
-            return record.summary
+        kept = self._kept_result(name, key, outputs, result)
+        if kept is not None:
+            return kept
         self.announce(f"[{len(self.order)}] {name} ...")
         start = time.perf_counter()
         try:
-            summary = work()
+            produced = work()
         except Exception as exc:
             self.records[name] = StageRecord(name, key, "failed", time.perf_counter() - start,
                                              error=f"{type(exc).__name__}: {exc}")
             self._save()
             cause = str(exc) if isinstance(exc, BAD_INPUT_ERRORS) else f"{type(exc).__name__}: {exc}"
-            kept = any(record.status == "done" for record in self.records.values())
-            then = (f"Earlier stages are kept in {self.folder}; fix the cause and run again to resume." if kept
+            kept_any = any(record.status == "done" for record in self.records.values())
+            then = (f"Earlier stages are kept in {self.folder}; fix the cause and run again to resume." if kept_any
                     else "Fix the cause and run the command again.")
             raise StageFailed(f"stage {name!r} failed: {cause}\n{then}") from exc
-        self.records[name] = StageRecord(name, key, "done", time.perf_counter() - start, summary)
+        self.records[name] = StageRecord(name, key, "done", time.perf_counter() - start, produced.to_json())
         self._save()
-        return summary
+        return produced
+
+    def _kept_result(self, name: str, key: str, outputs: list[Path], result: type[Result]) -> Result | None:
+        """The recorded result of a stage done with ``key`` whose outputs exist; None when it must run."""
+        record = self.records.get(name)
+        if not (record and record.status == "done" and record.key == key and all(Path(p).exists() for p in outputs)):
+            return None
+        try:
+            kept = result.from_json(record.summary)
+        except RecordMismatch as exc:
+            self.announce(f"[{len(self.order)}] {name}: {exc}, run again")
+            return None
+        record.ran = False
+        self.announce(f"[{len(self.order)}] {name}: up to date, skipped (took {record.seconds:.0f} s before)")
+        return kept
 
     def _save(self) -> None:
         data = {name: {k: v for k, v in asdict(r).items() if k != "ran"} for name, r in self.records.items()}

@@ -10,11 +10,12 @@ import numpy as np
 
 from detector.datasets.intake import open_dataset
 from detector.outputs import check_output_file
-from detector.model_files import ultralytics_predict
+from detector.model_files import read_checkpoint, ultralytics_predict
 from export.onnx_export import NAO_INPUT_HW, export_onnx, int8_path
 from export.quantize import quantize_int8
-from export.verify import FP32_TOLERANCE, INT8_TOLERANCE, compare, frontend_predict, median_latency_ms
+from export.verify import FP32_TOLERANCE, INT8_TOLERANCE, Agreement, compare, frontend_predict, median_latency_ms
 from detector.atomic import atomic_path, write_json
+from detector.records import JsonRecord
 from naoslam.detector import valid_confidence
 from naoslam.shipped import DEFAULT_CONF
 
@@ -25,6 +26,42 @@ CALIBRATION_IMAGES = 64
 
 class ExportMismatch(ValueError):
     """The exported model does not give the answers the checkpoint gives."""
+
+
+@dataclass(frozen=True)
+class ExportReport(JsonRecord):
+    """What ``poles export`` wrote and how the files agree with the checkpoint (also ``MODEL.export.json``)."""
+
+    weights: Path
+    onnx: Path
+    input_hw: tuple[int, int]
+    dynamic: bool
+    #: The input size the export was checked at (Ultralytics' own for a dynamic export).
+    verified_at_hw: tuple[int, int]
+    verify_frames: int
+    conf: float
+    fp32_vs_pytorch: Agreement
+    fp32_problems: tuple[str, ...]
+    #: Median milliseconds per frame through the front end, by file (``fp32``, ``int8``).
+    latency_ms: dict[str, float]
+    #: ``fp32`` or ``int8``: the faster file that agrees.
+    recommended: str
+    int8: Path | None = None
+    calibration_images: int = 0
+    int8_vs_fp32: Agreement | None = None
+    int8_problems: tuple[str, ...] = ()
+
+    @property
+    def width(self) -> int:
+        """The network's input width."""
+        return self.input_hw[1]
+
+    def comparisons(self) -> list[tuple[str, Agreement, tuple[str, ...]]]:
+        """Each comparison made: its label, the agreement and its problems."""
+        made = [("ONNX FP32 vs PyTorch", self.fp32_vs_pytorch, self.fp32_problems)]
+        if self.int8_vs_fp32 is not None:
+            made.append(("ONNX INT8 vs FP32", self.int8_vs_fp32, self.int8_problems))
+        return made
 
 
 @dataclass(frozen=True)
@@ -112,10 +149,8 @@ def verification_size(input_hw: tuple[int, int], dynamic: bool) -> tuple[int, in
     return rounded
 
 
-def run_export(job: ExportJob) -> dict:
+def run_export(job: ExportJob) -> ExportReport:
     """Export, verify, optionally quantise; returns the report (also written to ``job.report_path``)."""
-    from detector.model_files import read_checkpoint
-
     checkpoint = read_checkpoint(job.weights)  # a clear error for a missing file or one that is not a checkpoint
     data = job.data or training_dataset(job.weights)
     inputs = tuple(path for path in (job.weights, data, job.calib_data) if path is not None)
@@ -132,70 +167,72 @@ def run_export(job: ExportJob) -> dict:
         reference = ultralytics_predict(job.weights, frames, checked_hw, job.conf)
         fp32 = frontend_predict(fp32_path, frames, job.conf, checked_hw)
         agreement = compare(reference, fp32, job.conf, FP32_TOLERANCE.margin)
-        report = {"weights": str(job.weights), "onnx": str(job.out), "input_hw": list(input_hw),
-                  "dynamic": job.dynamic, "verified_at_hw": list(checked_hw),
-                  "verify_frames": len(frames), "conf": job.conf,
-                  "fp32_vs_pytorch": agreement.as_dict(), "fp32_problems": agreement.problems(FP32_TOLERANCE)}
-        if report["fp32_problems"]:
+        fp32_problems = tuple(agreement.problems(FP32_TOLERANCE))
+        if fp32_problems:
             raise ExportMismatch(f"{job.weights}: the ONNX export disagrees with PyTorch on {len(frames)} frames: "
-                                 + "; ".join(report["fp32_problems"]) + " - nothing was written")
-        models = {"fp32": fp32_path}
+                                 + "; ".join(fp32_problems) + " - nothing was written")
+        models, int8 = {"fp32": fp32_path}, {}
         if job.int8:
             int8_path = outputs.enter_context(atomic_path(job.int8_path))
             quantize_int8(fp32_path, int8_path, calibration, reduce_range=job.reduce_range)
-            int8 = compare(fp32, frontend_predict(int8_path, frames, job.conf, checked_hw), job.conf, INT8_TOLERANCE.margin)
-            report.update(int8=str(job.int8_path), calibration_images=len(calibration), int8_vs_fp32=int8.as_dict(),
-                          int8_problems=int8.problems(INT8_TOLERANCE))
+            against = compare(fp32, frontend_predict(int8_path, frames, job.conf, checked_hw), job.conf,
+                              INT8_TOLERANCE.margin)
+            int8 = {"int8": job.int8_path, "calibration_images": len(calibration), "int8_vs_fp32": against,
+                    "int8_problems": tuple(against.problems(INT8_TOLERANCE))}
             models["int8"] = int8_path
-        report["latency_ms"] = median_latency_ms(models, frames[:8])
-        report["recommended"] = _recommend(report)
-        write_json(job.report_path, report)
+        latency = median_latency_ms(models, frames[:8])
+        report = ExportReport(job.weights, job.out, input_hw, job.dynamic, checked_hw, len(frames), job.conf,
+                              agreement, fp32_problems, latency, _recommend(latency, int8.get("int8_problems")),
+                              **int8)
+        write_json(job.report_path, report.to_json())
     return report
 
 
-def _recommend(report: dict) -> str:
-    latency = report["latency_ms"]
-    if "int8" not in latency or report["int8_problems"]:
+def _recommend(latency: dict[str, float], int8_problems: tuple[str, ...] | None) -> str:
+    """INT8 when it agrees with FP32 and saves a tenth of the time, else FP32."""
+    if "int8" not in latency or int8_problems:
         return "fp32"
     return "int8" if latency["int8"] < 0.9 * latency["fp32"] else "fp32"
 
 
-def _verdict(agreement: dict, problems: list[str]) -> str:
+def verdict(agreement: Agreement, problems: tuple[str, ...]) -> str:
+    """One comparison's verdict: its problems, that nothing was compared, or that the two agree."""
     if problems:
         return "; ".join(problems)
-    if not agreement["reference"] and not agreement["candidate"]:
+    if not agreement.reference and not agreement.candidate:
         return "nothing compared: no detection on any frame (give --data frames with poles, or a lower --conf)"
     return "agrees"
 
 
-def print_report(report: dict) -> None:
+#: Rows of an agreement table: label and how to show one comparison's figure.
+AGREEMENT_ROWS = {"detections (ref / new)": lambda a: f"{a.reference} / {a.candidate}",
+                  "matched": lambda a: str(a.matched),
+                  "confident unmatched": lambda a: str(a.unmatched_confident),
+                  "class changes": lambda a: str(a.class_mismatches),
+                  "box IoU min / mean": lambda a: f"{a.box_iou_min:.4f} / {a.box_iou_mean:.4f}",
+                  "mask IoU min / mean": lambda a: f"{a.mask_iou_min:.4f} / {a.mask_iou_mean:.4f}",
+                  "max score difference": lambda a: f"{a.score_diff_max:.4f}"}
+
+
+def print_report(report: ExportReport) -> None:
     """The agreement and speed figures as a table, one column per comparison."""
     from detector.console import make_console
     from rich.table import Table
 
-    comparisons = [(label, report[key], report[problems]) for key, problems, label in (
-        ("fp32_vs_pytorch", "fp32_problems", "ONNX FP32 vs PyTorch"),
-        ("int8_vs_fp32", "int8_problems", "ONNX INT8 vs FP32")) if key in report]
-    height, width = report["input_hw"]
-    checked_height, checked_width = report.get("verified_at_hw", report["input_hw"])
+    comparisons = report.comparisons()
+    height, width = report.input_hw
+    checked_height, checked_width = report.verified_at_hw
     checked = "" if (height, width) == (checked_height, checked_width) else \
         f", checked at {checked_width}x{checked_height} (Ultralytics' size)"
-    table = Table(title=f"export at {width}x{height}{checked}: {report['verify_frames']} frames, conf {report['conf']}")
+    table = Table(title=f"export at {width}x{height}{checked}: {report.verify_frames} frames, conf {report.conf}")
     table.add_column("")
     for label, _, _ in comparisons:
         table.add_column(label, justify="right")
-    rows = {"detections (ref / new)": lambda a: f"{a['reference']} / {a['candidate']}",
-            "matched": lambda a: str(a["matched"]),
-            "confident unmatched": lambda a: str(a["unmatched_confident"]),
-            "class changes": lambda a: str(a["class_mismatches"]),
-            "box IoU min / mean": lambda a: f"{a['box_iou_min']:.4f} / {a['box_iou_mean']:.4f}",
-            "mask IoU min / mean": lambda a: f"{a['mask_iou_min']:.4f} / {a['mask_iou_mean']:.4f}",
-            "max score difference": lambda a: f"{a['score_diff_max']:.4f}"}
-    for name, cell in rows.items():
-        table.add_row(name, *(cell(a) if a["reference"] or a["candidate"] else "-" for _, a, _ in comparisons))
-    table.add_row("verdict", *(_verdict(a, problems) for _, a, problems in comparisons))
+    for name, cell in AGREEMENT_ROWS.items():
+        table.add_row(name, *(cell(a) if a.reference or a.candidate else "-" for _, a, _ in comparisons))
+    table.add_row("verdict", *(verdict(a, problems) for _, a, problems in comparisons))
     console = make_console()
     console.print(table)
-    latency = ", ".join(f"{k} {v:.1f} ms" for k, v in report["latency_ms"].items())
-    console.print(f"front end per frame: {latency}; use {report['recommended'].upper()}; wrote {report['onnx']}"
-                  + (f" and {report['int8']}" if "int8" in report else ""))
+    latency = ", ".join(f"{k} {v:.1f} ms" for k, v in report.latency_ms.items())
+    console.print(f"front end per frame: {latency}; use {report.recommended.upper()}; wrote {report.onnx}"
+                  + (f" and {report.int8}" if report.int8 else ""))

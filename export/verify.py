@@ -2,12 +2,13 @@
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from detector.matching import box_iou, greedy_match
+from detector.records import JsonRecord
 from naoslam.detections import Detection
 from naoslam.detector import LandmarkDetector
 
@@ -44,7 +45,7 @@ INT8_TOLERANCE = Tolerance(min_box_iou=0.5, min_mean_mask_iou=0.7, max_score_dif
 
 
 @dataclass(frozen=True)
-class Agreement:
+class Agreement(JsonRecord):
     """How two predictors' detections on the same frames compare (matched one-to-one by box IoU >= 0.5)."""
 
     frames: int
@@ -74,9 +75,6 @@ class Agreement:
         if self.matched and self.score_diff_max > tolerance.max_score_diff:
             out.append(f"scores differ by up to {self.score_diff_max:.3f} (> {tolerance.max_score_diff})")
         return out
-
-    def as_dict(self) -> dict:
-        return asdict(self)
 
 
 def compare(reference: list[list[Detection]], candidate: list[list[Detection]], conf: float,

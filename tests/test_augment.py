@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 from pathlib import Path
 
@@ -14,6 +15,7 @@ from augment.pipeline import augment_copy
 from augment.run import augment_dataset
 from detector.cli import main
 from detector.datasets import Instance, load_dataset
+from detector.datasets.io import SplitCounts
 from detector.datasets.polygons import clip_polygon, mask_to_polygon, polygon_area, polygon_to_mask
 from detector.datasets.split import split_dataset
 from detector.preview import CAPTION_SCALE, FONT, draw_label, wrap_caption
@@ -139,7 +141,8 @@ def test_dataset_counts_untouched_splits_and_input(synth_dataset, tmp_path):
     assert len(augmented.split("train")) == 4 * len(original.split("train"))
     for split in ("valid", "test"):
         assert _tree_digest(tmp_path / "aug", split) == _tree_digest(synth_dataset, split)
-    assert summary["instances_kept"] + summary["instances_dropped"] == summary["instances_into_copies"]
+    assert summary.instances_kept + summary.instances_dropped == summary.instances_into_copies
+    assert summary == type(summary).from_json(json.loads((tmp_path / "aug" / "augment.json").read_text()))
     preview = cv2.imread(str(tmp_path / "aug" / "augment_preview.png"))
     assert preview.shape[1] == 4 * 320  # each original beside its three copies
     assert augmented.errors == []
@@ -212,9 +215,10 @@ def test_augment_refuses_to_write_into_its_input(synth_dataset):
 
 def test_stratified_split_ratios_and_classes(synth_dataset, tmp_path):
     counts = split_dataset(synth_dataset, tmp_path / "split", (0.5, 0.25, 0.25), seed=3)
-    assert counts == {"train": 12, "valid": 6, "test": 6}
+    assert counts == SplitCounts(train=12, valid=6, test=6)
     dataset = load_dataset(tmp_path / "split")
-    per_split = {split: {i.cls for s in dataset.split(split) for i in s.instances} for split in counts}
+    per_split = {split: {i.cls for s in dataset.split(split) for i in s.instances}
+                 for split in ("train", "valid", "test")}
     everywhere = {i.cls for s in dataset.samples for i in s.instances}
     images_per_class = {c: sum(1 for s in dataset.samples if c in {i.cls for i in s.instances}) for c in everywhere}
     for cls, n in images_per_class.items():
@@ -238,4 +242,4 @@ def test_a_small_dataset_still_gets_a_validation_image(tmp_path):
     from detector.synth.generate import SynthJob, generate_dataset
 
     three = generate_dataset(tmp_path / "three", SynthJob(3, seed=9, width=160, height=120), workers=1, progress=False)
-    assert split_dataset(three, tmp_path / "resplit", seed=0) == {"train": 1, "test": 1, "valid": 1}
+    assert split_dataset(three, tmp_path / "resplit", seed=0) == SplitCounts(train=1, valid=1, test=1)

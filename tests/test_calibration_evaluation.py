@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from calibration.fit import WALK_RELATIVE_STD, calibrate, fit_power_law
+from calibration.report import CalibrationReport
 from detector.model_files import load_calibration
 from calibration.samples import measure_samples, open_ranged
 from detector.cli import main
@@ -19,9 +20,10 @@ from detector.datasets import load_dataset
 from detector.outputs import OUTPUT_MARKER
 from detector.datasets.truth import load_truth
 from detector.evaluation.by_width import label_width_px, recall_by_width, width_bin_names
-from detector.evaluation.counting import (best_threshold, confusion_matrix, evaluate_image, outcome, precision_recall,
+from detector.evaluation.counting import (best_threshold, confusion_matrix, evaluate_image, outcome,
                                           totals)
 from detector.evaluation.predictors import RuntimePredictor
+from detector.evaluation.results import Counts, Evaluation, SweepPoint
 from detector.evaluation.run import evaluate
 from detector.synth.generate import SynthJob, generate_dataset
 from detector.synth.render import render_scene
@@ -56,22 +58,22 @@ def test_calibration_shots_recover_the_camera_law(calibration_shots):
     # Height law against the pinhole prediction: height_px = f * 0.42 m / range.
     focal = PinholeCamera().focal_px
     assert calibration.height_law(focal * 0.42 / 2.0) == pytest.approx(2.0, rel=0.05)
-    far = [row for row in report["errors_by_range"] if float(row["range_m"].split("-")[0]) >= 1.25]
-    assert far and all(row["rule"] < 5.0 and row["fused"] < 5.0 for row in far)
+    far = [row for row in report.errors_by_range if float(row.label.split("-")[0]) >= 1.25]
+    assert far and all(row.rule < 5.0 and row.fused < 5.0 for row in far)
     # The shots carry the camera pose: wherever the foot is in view, its row gives the range within 2 %.
-    with_foot = [row for row in far if row["foot_samples"]]
-    assert with_foot and all(row["foot"] < 2.0 and row["fused+foot"] <= row["fused"] + 0.5 for row in with_foot)
-    assert report["colour"]["b"] == pytest.approx(-1.0, abs=0.06)
+    with_foot = [row for row in far if row.foot_samples]
+    assert with_foot and all(row.foot < 2.0 and row.fused_foot <= row.fused + 0.5 for row in with_foot)
+    assert report.colour.b == pytest.approx(-1.0, abs=0.06)
     assert math.degrees(calibration.bearing_std_rad) < 0.3
     # The laws are fitted on on-axis sizes, so poles shot at +-10 and +-20 deg fit them as tightly as those ahead;
     # the filter is still told the noise of a walking robot's frames, which still shots understate.
     assert calibration.off_axis_corrected
     # (the shots reach 9 m, where a pole is 7 px wide and half a pixel is 7 %, and the camera rolls up to 3 deg,
     # which widens a tilted pole's box by 0.5-1.5 px: the width law's residual is the wider)
-    assert report["width"]["relative_std"] < 0.10 and report["height"]["relative_std"] < 0.03
+    assert report.width.relative_std < 0.10 and report.height.relative_std < 0.03
     assert calibration.width_law.relative_std == WALK_RELATIVE_STD["width"]
     assert calibration.height_law.relative_std == WALK_RELATIVE_STD["height"]
-    assert calibration.colour_law.relative_std == max(report["colour"]["relative_std"], WALK_RELATIVE_STD["colour"])
+    assert calibration.colour_law.relative_std == max(report.colour.relative_std, WALK_RELATIVE_STD["colour"])
 
 
 def test_the_colour_law_is_fitted_on_what_the_colour_filter_measures(calibration_shots):
@@ -114,13 +116,13 @@ def test_a_walks_sightings_set_the_noise_the_filter_is_told(calibration_shots):
     assert calibration.width_law.relative_std == pytest.approx(0.15, rel=0.15)
     assert calibration.height_law.relative_std == pytest.approx(0.04, rel=0.15)
     assert calibration.colour_law.relative_std == pytest.approx(0.10, rel=0.15)
-    assert report["colour"]["walk"]["sightings"] == 4 * sum(s.band_distance_px is not None for s in shots)
-    assert report["height"]["walk"]["sightings"] == 4 * sum(not s.partial for s in shots)
+    assert report.colour.walk.sightings == 4 * sum(s.band_distance_px is not None for s in shots)
+    assert report.height.walk.sightings == 4 * sum(not s.partial for s in shots)
     # The walk sets the noise only: the laws are the still shots'.
     assert (calibration.width_law.a, calibration.height_law.b) == (plain.width_law.a, plain.height_law.b)
     # A walk that reads as well as the shots tells the filter the fit's own residual, not the default floor.
     steady, report = calibrate(shots, walk_samples=shots)
-    assert steady.height_law.relative_std == pytest.approx(report["height"]["relative_std"], rel=0.5)
+    assert steady.height_law.relative_std == pytest.approx(report.height.relative_std, rel=0.5)
     assert steady.height_law.relative_std < WALK_RELATIVE_STD["height"]
     with pytest.raises(ValueError, match="--noise-data: 5 sightings measure the width law"):
         calibrate(shots, walk_samples=shots[:5])
@@ -132,16 +134,16 @@ def test_calibrate_measures_the_noise_on_a_rendered_walk(calibration_shots, tmp_
     assert main(["calibrate", "--data", str(calibration_shots), "--noise-data", str(walk), "--out", str(out),
                  "--plot", str(plot)]) == 0
     assert cv2.imread(str(plot)) is not None
-    report = json.loads(out.read_text())["report"]
+    report = CalibrationReport.from_json(json.loads(out.read_text())["report"])
     labelled = sum(len(i["landmarks"]) for i in json.loads((walk / "annotations.json").read_text())["images"].values())
-    assert report["width"]["walk"]["sightings"] == labelled >= 20
+    assert report.width.walk.sightings == labelled >= 20
     # 30 frames hold too few poles the colour filter reads to measure its noise: its default is kept, and said.
-    assert report["colour"]["walk_too_few"] < 20 and "walk" not in report["colour"]
-    assert load_calibration(out).colour_law.relative_std == max(report["colour"]["relative_std"],
+    assert report.colour.walk_too_few < 20 and report.colour.walk is None
+    assert load_calibration(out).colour_law.relative_std == max(report.colour.relative_std,
                                                                 WALK_RELATIVE_STD["colour"])
-    assert report["noise_source"] == str(walk) and f"measured on {walk}" in capsys.readouterr().out.replace("\n", "")
-    assert load_calibration(out).width_law.relative_std == max(report["width"]["relative_std"],
-                                                               report["width"]["walk"]["relative_std"])
+    assert report.noise_source == str(walk) and f"measured on {walk}" in capsys.readouterr().out.replace("\n", "")
+    assert load_calibration(out).width_law.relative_std == max(report.width.relative_std,
+                                                               report.width.walk.relative_std)
 
 
 def test_noise_data_without_true_ranges_is_refused_before_anything_is_measured(calibration_shots, dataset_copy,
@@ -315,8 +317,8 @@ def test_perfect_predictions_score_one():
     masks = [_rectangle(10), _rectangle(50)]
     image = _evaluate("a.jpg", ["bp", "pg"], masks, ["bp", "pg"], masks)
     counts = totals([image], 0.5)
-    assert counts == {"tp": 2, "fp": 0, "fn": 0, "tn": 0}
-    assert precision_recall(counts)[:2] == (1.0, 1.0)
+    assert counts == Counts(tp=2)
+    assert counts.precision_recall()[:2] == (1.0, 1.0)
     assert [image.overlap[p, r] for p, r in image.match(0.5)] == [1.0, 1.0]
 
 
@@ -324,16 +326,16 @@ def test_shifted_masks_give_the_hand_computed_iou():
     truth = [_rectangle(10)]
     # Shifted 2 px: intersection 8x40, union 12x40 -> IoU 2/3, still a true positive.
     near = _evaluate("a.jpg", ["py"], truth, ["py"], [_rectangle(12)])
-    assert near.overlap[0, 0] == pytest.approx(2 / 3) and near.counts(0.5)["tp"] == 1
+    assert near.overlap[0, 0] == pytest.approx(2 / 3) and near.counts(0.5).tp == 1
     # Shifted 6 px: 4x40 over 16x40 -> 0.25: one false positive and one false negative.
     far = _evaluate("a.jpg", ["py"], truth, ["py"], [_rectangle(16)])
-    assert far.overlap[0, 0] == pytest.approx(0.25) and far.counts(0.5) == {"tp": 0, "fp": 1, "fn": 1, "tn": 0}
+    assert far.overlap[0, 0] == pytest.approx(0.25) and far.counts(0.5) == Counts(fp=1, fn=1)
     # Right place, wrong class: not a match.
     wrong = _evaluate("a.jpg", ["py"], truth, ["yp"], truth)
-    assert wrong.counts(0.5) == {"tp": 0, "fp": 1, "fn": 1, "tn": 0}
+    assert wrong.counts(0.5) == Counts(fp=1, fn=1)
     # Below the threshold a detection does not count at all.
     low = _evaluate("a.jpg", ["py"], truth, ["py"], truth, [0.3])
-    assert low.counts(0.5) == {"tp": 0, "fp": 0, "fn": 1, "tn": 0}
+    assert low.counts(0.5) == Counts(fn=1)
 
 
 def test_recall_by_width_puts_each_label_in_the_bin_of_its_width():
@@ -343,11 +345,11 @@ def test_recall_by_width_puts_each_label_in_the_bin_of_its_width():
     found = [masks[1], masks[3]]
     image = _evaluate("a.jpg", ["bp"] * 4, masks, ["bp", "bp"], found)
     rows = recall_by_width([image], 0.5)
-    assert [row["width"] for row in rows] == width_bin_names() == ["< 10 px", "10-16 px", "16-32 px", "32-64 px",
+    assert [row.width for row in rows] == width_bin_names() == ["< 10 px", "10-16 px", "16-32 px", "32-64 px",
                                                                    ">= 64 px"]
-    assert [(row["labels"], row["found"]) for row in rows] == [(1, 0), (1, 1), (0, 0), (1, 0), (1, 1)]
-    assert [row["recall"] for row in rows] == [0.0, 1.0, None, 0.0, 1.0]
-    assert sum(row["found"] for row in rows) == totals([image], 0.5)["tp"]
+    assert [(row.labels, row.found) for row in rows] == [(1, 0), (1, 1), (0, 0), (1, 0), (1, 1)]
+    assert [row.recall for row in rows] == [0.0, 1.0, None, 0.0, 1.0]
+    assert sum(row.found for row in rows) == totals([image], 0.5).tp
 
 
 def test_label_width_is_measured_across_a_tilted_pole_and_scaled_to_a_640_px_frame():
@@ -360,7 +362,7 @@ def test_label_width_is_measured_across_a_tilted_pole_and_scaled_to_a_640_px_fra
 
 def test_empty_images_without_detections_are_true_negatives():
     images = [_evaluate(f"{i}.jpg", [], [], [], []) for i in range(5)]
-    assert totals(images, 0.5) == {"tp": 0, "fp": 0, "fn": 0, "tn": 5}
+    assert totals(images, 0.5) == Counts(tn=5)
 
 
 def test_confusion_matrix_separates_swaps_duplicates_and_misses():
@@ -380,7 +382,7 @@ def test_confusion_matrix_separates_swaps_duplicates_and_misses():
     expected[py, none] = 1  # missed
     assert (matrix == expected).all()
     counts = image.counts(0.5)
-    assert counts["fp"] == matrix[:, :6].sum() - np.trace(matrix) and counts["fn"] == matrix[:6].sum() - np.trace(matrix)
+    assert counts.fp == matrix[:, :6].sum() - np.trace(matrix) and counts.fn == matrix[:6].sum() - np.trace(matrix)
 
 
 def _clean_pole_frame(code: str, range_m: float, angle_deg: float = 0.0) -> np.ndarray:
@@ -423,20 +425,20 @@ def test_evaluate_keeps_a_used_out_and_force_replaces_it_whole(synth_dataset, tm
 
 def test_evaluate_writes_metrics_plots_and_overlays(synth_dataset, tmp_path):
     metrics = evaluate(RuntimePredictor("colour-filter"), synth_dataset, tmp_path / "eval", progress=False)
-    saved = json.loads((tmp_path / "eval" / "metrics.json").read_text())
-    for key in ("precision", "recall", "mean_iou", "tp", "fp", "fn", "tn", "images", "sweep", "bearing_error"):
-        assert key in saved
-    assert saved["images"] == len(load_dataset(synth_dataset).split("test"))
-    assert saved["tp"] + saved["fn"] == sum(len(s.instances) for s in load_dataset(synth_dataset).split("test"))
+    assert Evaluation.from_json(json.loads((tmp_path / "eval" / "metrics.json").read_text())) == metrics
+    test = load_dataset(synth_dataset).split("test")
+    counts = metrics.counts
+    assert metrics.images == len(test) == len(metrics.per_image) and metrics.bearing_error is not None
+    assert counts.tp + counts.fn == sum(len(s.instances) for s in test)
+    assert sum((row.counts for row in metrics.per_image), Counts()) == counts
     assert cv2.imread(str(tmp_path / "eval" / "per_image.png")) is not None
     assert cv2.imread(str(tmp_path / "eval" / "confusion.png")) is not None
     assert cv2.imread(str(tmp_path / "eval" / "recall_by_width.png")) is not None
-    by_width = saved["recall_by_width"]
-    assert sum(row["labels"] for row in by_width) == saved["tp"] + saved["fn"]
-    assert sum(row["found"] for row in by_width) == saved["tp"]
-    confusion = np.array(saved["confusion"]["counts"])
-    assert np.trace(confusion) == saved["tp"] and confusion[:-1].sum() == saved["tp"] + saved["fn"]
-    assert len(list((tmp_path / "eval" / "errors").glob("*.jpg"))) == metrics["overlays"]
+    assert sum(row.labels for row in metrics.recall_by_width) == counts.tp + counts.fn
+    assert sum(row.found for row in metrics.recall_by_width) == counts.tp
+    confusion = np.array(metrics.confusion.counts)
+    assert np.trace(confusion) == counts.tp and confusion[:-1].sum() == counts.tp + counts.fn
+    assert len(list((tmp_path / "eval" / "errors").glob("*.jpg"))) == metrics.overlays
 
 
 def test_real_poles_calibration_images_measure(real_poles):
@@ -451,8 +453,9 @@ def test_evaluate_a_pytorch_checkpoint_like_its_onnx_export(tiny_weights, tiny_o
                              conf=0.001, progress=False)
     onnx_metrics = evaluate(make_predictor(str(tiny_onnx)), synth_dataset, tmp_path / "onnx", conf=0.001,
                             progress=False)
-    assert torch_metrics["images"] == onnx_metrics["images"] > 0
-    assert abs(torch_metrics["tp"] + torch_metrics["fp"] - onnx_metrics["tp"] - onnx_metrics["fp"]) <= 2
+    assert torch_metrics.images == onnx_metrics.images > 0
+    found = [metrics.counts.tp + metrics.counts.fp for metrics in (torch_metrics, onnx_metrics)]
+    assert abs(found[0] - found[1]) <= 2
 
 
 def test_evaluate_takes_a_train_run_folder_for_its_best_checkpoint(tiny_run, tmp_path):
@@ -493,7 +496,7 @@ def test_a_models_calibration_holds_only_at_the_input_width_it_was_measured_at(c
     assert evaluate_at_320("--calibration", str(small)) == 0
     assert json.loads((tmp_path / "eval2" / "metrics.json").read_text())["range_error"]["median"] < 0.1
     assert evaluate_at_320() == 0  # the shipped calibration is the 640 px one: no range figures rather than wrong ones
-    assert "range_error" not in json.loads((tmp_path / "eval0" / "metrics.json").read_text())
+    assert json.loads((tmp_path / "eval0" / "metrics.json").read_text())["range_error"] is None
     capsys.readouterr()
     assert main(["slam", "--sim", "square", "--frontend", "shipped", "--imgsz", "320", "--duration", "5",
                  "--out", str(tmp_path / "slam")]) == 2
@@ -556,6 +559,6 @@ def test_the_fit_plot_labels_its_log_axes_in_plain_numbers_at_1_2_and_5():
 
 
 def test_the_best_threshold_is_the_best_f1s_and_none_when_every_threshold_counts_the_same():
-    rows = [{"conf": c, "f1": f1} for c, f1 in ((0.25, 0.80), (0.5, 0.91), (0.75, 0.88))]
+    rows = [SweepPoint(c, 0.9, 0.9, f1) for c, f1 in ((0.25, 0.80), (0.5, 0.91), (0.75, 0.88))]
     assert best_threshold(rows) == 0.5
-    assert best_threshold([{**row, "f1": 0.59} for row in rows]) is None
+    assert best_threshold([replace(row, f1=0.59) for row in rows]) is None

@@ -3,38 +3,64 @@ from __future__ import annotations
 
 import json
 import re
+from dataclasses import dataclass
+from pathlib import Path
 
 import pytest
 
-from detector.demo.pipeline import Budget, run_demo
+from detector.demo.budget import Budget
+from detector.demo.pipeline import run_demo
+from detector.demo.results import CheckSummary, DemoEvaluation, EvaluatedFrontEnd
+from detector.records import JsonRecord
 from detector.stages import StageFailed, StageLedger, stage_key
+from detector.training.summary import TrainingSummary
 from naoslam.detector import LandmarkDetector
 
 TINY = Budget("tiny", images=24, copies=1, models=("yolov8n-seg",), imgsz=64, epochs=1, train_hours=None, batch=8,
               export_hw=(96, 128), calibration_shots=18, walk_seconds=8.0, compare_seeds=1, conf=None)
 
 
+@dataclass(frozen=True)
+class Made(JsonRecord):
+    """A stage's result in these tests: which call made it, and the file it wrote."""
+
+    calls: int
+    output: Path
+
+
 def test_ledger_skips_done_stages_and_reruns_changed_ones(tmp_path):
     calls = []
     output = tmp_path / "out.txt"
 
-    def work():
+    def work() -> Made:
         calls.append(1)
         output.write_text("x")
-        return {"n": len(calls)}
+        return Made(len(calls), output)
 
-    assert StageLedger(tmp_path).run("a", stage_key(x=1), [output], work) == {"n": 1}
-    assert StageLedger(tmp_path).run("a", stage_key(x=1), [output], work) == {"n": 1} and len(calls) == 1
-    assert StageLedger(tmp_path).run("a", stage_key(x=2), [output], work) == {"n": 2}
+    assert StageLedger(tmp_path).run("a", stage_key(x=1), [output], work, Made) == Made(1, output)
+    assert StageLedger(tmp_path).run("a", stage_key(x=1), [output], work, Made) == Made(1, output)
+    assert len(calls) == 1  # the second ledger read the first's result back, typed
+    assert StageLedger(tmp_path).run("a", stage_key(x=2), [output], work, Made) == Made(2, output)
     output.unlink()
-    assert StageLedger(tmp_path).run("a", stage_key(x=2), [output], work) == {"n": 3}
+    assert StageLedger(tmp_path).run("a", stage_key(x=2), [output], work, Made) == Made(3, output)
+
+
+def test_ledger_runs_again_a_stage_whose_recorded_result_is_of_another_shape(tmp_path):
+    """A run folder from another version records a result its stage no longer returns: the stage runs again rather
+    than hand on half a result."""
+    output = tmp_path / "out.txt"
+    output.write_text("x")
+    StageLedger(tmp_path).run("a", "k", [output], lambda: CheckSummary(0, 2), CheckSummary)
+    said = []
+    rerun = StageLedger(tmp_path, announce=said.append).run("a", "k", [output], lambda: Made(7, output), Made)
+    assert rerun == Made(7, output) and "does not fit its fields (calls, output), run again" in said[0]
 
 
 def test_ledger_records_a_failure_and_keeps_earlier_stages(tmp_path):
     ledger = StageLedger(tmp_path)
-    ledger.run("first", "k1", [], lambda: {"ok": True})
+    ledger.run("first", "k1", [], lambda: CheckSummary(0, 0), CheckSummary)
     with pytest.raises(StageFailed, match=r"stage 'second' failed: no frames"):
-        ledger.run("second", "k2", [], lambda: (_ for _ in ()).throw(ValueError("no frames")))
+        ledger.run("second", "k2", [], lambda: (_ for _ in ()).throw(ValueError("no frames")), CheckSummary)
     saved = json.loads((tmp_path / "stages.json").read_text())
     assert saved["first"]["status"] == "done" and saved["second"]["status"] == "failed"
     assert "no frames" in saved["second"]["error"]
@@ -48,8 +74,9 @@ def test_demo_runs_every_stage_writes_the_report_and_resumes(tmp_path, monkeypat
                             "evaluate", "slam"]
     assert all(s["status"] == "done" for s in stages.values())
     # Two validation frames are too few poles to choose a threshold on: the shipped model's own stays.
-    assert stages["evaluate"]["summary"]["conf_source"].startswith("the shipped model's")
-    assert stages["evaluate"]["summary"]["conf"] == LandmarkDetector().stored_conf
+    evaluated = DemoEvaluation.from_json(stages["evaluate"]["summary"])
+    assert evaluated.conf_source.startswith("the shipped model's")
+    assert evaluated.conf == LandmarkDetector().stored_conf
     page = (out / "report.html").read_text()
     for heading in ("Stages and time taken", "Dataset and augmentation", "Training", "Export and agreement",
                     "Range calibration", "Evaluation on held-out frames", "EKF SLAM on a simulated walk"):
@@ -59,17 +86,19 @@ def test_demo_runs_every_stage_writes_the_report_and_resumes(tmp_path, monkeypat
     assert "not produced" not in page.split("Evaluation on held-out frames")[0]
     assert page.count('alt="confusion matrix"') == 4  # one per front end
     assert page.count('alt="recall by pole width"') == 4
-    evaluation = json.loads((out / "evaluation" / "summary.json").read_text())
-    assert [row["model"] for row in evaluation] == ["yolov8n-seg.onnx", "yolov8n-seg-int8.onnx",
-                                                    "shipped", "colour-filter"]
+    written = [EvaluatedFrontEnd.from_json(row) for row in
+               json.loads((out / "evaluation" / "summary.json").read_text())]
+    assert written == list(evaluated.front_ends)
+    assert [row.evaluation.model for row in written] == ["yolov8n-seg.onnx", "yolov8n-seg-int8.onnx",
+                                                         "shipped", "colour-filter"]
     # The shipped model as installed is counted beside the trained one, and the report says what training bought.
-    f1 = {row["model"]: row["f1"] for row in evaluation}
-    gain = stages["evaluate"]["summary"]["against_shipped"]
-    assert gain["model"] == "yolov8n-seg.onnx" and gain["reference"] == "shipped"
-    assert gain["difference"] == pytest.approx(f1["yolov8n-seg.onnx"] - f1["shipped"])
-    assert gain["low"] <= gain["difference"] <= gain["high"]
-    assert gain["reference_conf"] == LandmarkDetector().stored_conf
-    assert f"changes F1 by {gain['difference']:+.3f}" in page
+    f1 = {row.evaluation.model: row.evaluation.f1 for row in written}
+    gain = evaluated.against_shipped
+    assert gain.model == "yolov8n-seg.onnx" and gain.reference == "shipped"
+    assert gain.change.difference == pytest.approx(f1["yolov8n-seg.onnx"] - f1["shipped"])
+    assert gain.change.low <= gain.change.difference <= gain.change.high
+    assert gain.reference_conf == LandmarkDetector().stored_conf
+    assert f"changes F1 by {gain.change.difference:+.3f}" in page
     # A second run finds every stage up to date and redoes nothing.
     before = {k: v["seconds"] for k, v in stages.items()}
     assert run_demo(out, TINY) == 0
@@ -82,9 +111,9 @@ def test_demo_runs_every_stage_writes_the_report_and_resumes(tmp_path, monkeypat
     assert run_demo(out, TINY) == 0
     assert not stale.exists()  # a stage that runs again replaces its folder whole
     again = json.loads((out / "stages.json").read_text())
-    assert again["train yolov8n-seg"]["summary"]["weights_from"] == "scratch"
-    assert again["evaluate"]["summary"]["conf_source"] == "best F1 on the validation split"
-    assert stages["train yolov8n-seg"]["summary"]["weights_from"].endswith("poles-yolov8n-seg.pt")
+    assert TrainingSummary.from_json(again["train yolov8n-seg"]["summary"]).started_from is None
+    assert DemoEvaluation.from_json(again["evaluate"]["summary"]).conf_source == "best F1 on the validation split"
+    assert TrainingSummary.from_json(stages["train yolov8n-seg"]["summary"]).started_from.name == "poles-yolov8n-seg.pt"
     assert {k for k in again if again[k]["seconds"] != before[k]} >= {"train yolov8n-seg", "export yolov8n-seg"}
 
 
@@ -104,7 +133,7 @@ def test_the_demo_refuses_a_folder_of_someone_elses_files(tmp_path):
 def test_the_fast_demo_trains_for_what_the_other_stages_leave_of_its_whole_time():
     """On the test machine the whole run fits 12 minutes; a machine twice as slow before training trains for less,
     so that it ends near the same time; the slowest still trains for a couple of minutes."""
-    from detector.demo.pipeline import AFTER_TRAINING_S, BEFORE_TRAINING_S, BUDGETS, MIN_TRAINING_S
+    from detector.demo.budget import AFTER_TRAINING_S, BEFORE_TRAINING_S, BUDGETS, MIN_TRAINING_S
 
     fast = BUDGETS["fast"]
     here, twice_as_slow = fast.training_hours(BEFORE_TRAINING_S), fast.training_hours(2 * BEFORE_TRAINING_S)

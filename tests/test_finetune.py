@@ -13,14 +13,16 @@ import pytest
 
 from detector.cli import main
 from detector.datasets.io import load_dataset
-from detector.finetune.blend import frame_errors, frames_against, pick_share
-from detector.finetune.intake import prepare_export
+from detector.evaluation.results import Counts, FrameCounts
+from detector.finetune.blend import BlendScore, frame_errors, frames_against, pick_share
+from detector.finetune.intake import prepare_dataset
 from detector.finetune.pipeline import run_finetune
 from detector.finetune.recipe import BLEND_SHARES, DEFAULT_BLEND_SHARE, FinetuneRecipe
+from detector.finetune.results import FinetuneResult
 from detector.stages import StageFailed, StageLedger
 from detector.synth.generate import SynthJob, generate_dataset
 from detector.synth.scene import SceneConfig
-from detector.synth.team_paint import measure_team_paint
+from detector.synth.team_paint import TeamPaint, measure_team_paint
 from naoslam.crop_detector import CropDetector
 from naoslam.detector import LandmarkDetector, load_detector
 
@@ -44,7 +46,7 @@ def export(tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="module")
-def finished(export, tmp_path_factory) -> tuple[Path, dict, str]:
+def finished(export, tmp_path_factory) -> tuple[Path, FinetuneResult, str]:
     """A whole tiny fine-tune of ``export``: its run folder, its results, and the export's digest before it ran."""
     before = _digest(export)
     out = tmp_path_factory.mktemp("finetune") / "run"
@@ -52,24 +54,23 @@ def finished(export, tmp_path_factory) -> tuple[Path, dict, str]:
 
 
 def test_finetune_writes_the_models_the_report_and_the_metrics_and_leaves_the_export_alone(export, finished):
-    out, results, before = finished
+    out, result, before = finished
     assert _digest(export) == before
     model = out / "models" / "poles-finetuned.onnx"
     detector = LandmarkDetector(model)
     # The shipped threshold rides along; the shipped calibration (measured at 640 px input) not at this test's 64 px.
     assert detector.stored_conf == LandmarkDetector().stored_conf and detector.calibration is None
-    assert results["export model"]["calibrated"] is False
-    assert (out / "models" / "poles-finetuned-int8.onnx").is_file()
-    metrics = json.loads((out / "metrics.json").read_text())
-    sets = {row["set"] for row in metrics["evaluate"]["rows"]}
-    assert sets == {"your test frames", "rendered", "far poles"}
-    assert {row["model"] for row in metrics["evaluate"]["rows"]} == {"shipped", "fine-tune",
-                                                                     f"blend {results['blend']['chosen']:g}"}
-    for row in metrics["evaluate"]["rows"]:
-        assert row["tp"] + row["fn"] > 0 and (row["model"] == "shipped") == ("f1_change" not in row)
+    stages = result.stages
+    assert stages.export.calibrated is False and stages.export.int8 == out / "models" / "poles-finetuned-int8.onnx"
+    assert stages.export.int8.is_file() and stages.export.check.fp32_problems == ()
+    assert FinetuneResult.from_json(json.loads((out / "metrics.json").read_text())) == result
+    assert {row.set_name for row in stages.evaluate.rows} == {"your test frames", "rendered", "far poles"}
+    assert {row.model for row in stages.evaluate.rows} == {"shipped", "fine-tune", f"blend {stages.blend.chosen:g}"}
+    for row in stages.evaluate.rows:
+        assert row.counts.tp + row.counts.fn > 0 and (row.model == "shipped") == (row.f1_change is None)
     page = (out / "report.html").read_text()
     assert "What the fine-tune changed" in page and "far poles" in page and "data:image/png;base64" in page
-    assert metrics["rehearsal"]["frames"] == TINY.rehearsal_frames(metrics["augment"]["train_images_out"]) > 0
+    assert stages.rehearsal.frames == TINY.rehearsal_frames(stages.augment.train_images_out) > 0
 
 
 def test_the_robot_model_is_fine_tuned_and_shipped_as_the_robot_model_is(export, tmp_path):
@@ -77,32 +78,32 @@ def test_the_robot_model_is_fine_tuned_and_shipped_as_the_robot_model_is(export,
     from naoslam.shipped import OPERATING_CONF_KEY, robot_path
 
     installed = sorted(ROBOT_WEIGHTS.parent.iterdir()) + sorted(robot_path().parent.iterdir())
-    results = run_finetune(export, tmp_path / "run", FinetuneRecipe(model="robot", minutes=0.2, epochs=2, copies=1,
-                                                                    evaluation_frames=10))
+    stages = run_finetune(export, tmp_path / "run", FinetuneRecipe(model="robot", minutes=0.2, epochs=2, copies=1,
+                                                                   evaluation_frames=10)).stages
     assert sorted(ROBOT_WEIGHTS.parent.iterdir()) + sorted(robot_path().parent.iterdir()) == installed
-    model = Path(results["export model"]["fp32"])
-    assert model.name == "poles-robot-finetuned.onnx" and results["export model"]["int8"] is None
+    model = stages.export.fp32
+    assert model.name == "poles-robot-finetuned.onnx" and stages.export.int8 is None
     shipped = read_info(robot_path()).extra
-    assert read_info(model).extra[OPERATING_CONF_KEY] == shipped[OPERATING_CONF_KEY] == results["evaluate"]["conf"]
+    assert read_info(model).extra[OPERATING_CONF_KEY] == shipped[OPERATING_CONF_KEY] == stages.evaluate.conf
     assert read_info(model).extra["calibration"] == shipped["calibration"]
-    assert results["train"]["epochs"] == 2 and [row["share"] for row in results["blend"]["shares"]] == list(BLEND_SHARES)
+    assert stages.train.epochs == 2 and [score.share for score in stages.blend.shares] == list(BLEND_SHARES)
     detector = load_detector(model)
     assert isinstance(detector, CropDetector) and detector.calibration is not None
 
 
 def test_the_blend_ships_half_and_half_unless_its_valid_frames_show_another_share_better(finished):
-    _, results, _ = finished
-    shares = {row["share"]: row for row in results["blend"]["shares"]}
+    blend = finished[1].stages.blend
+    shares = {score.share: score for score in blend.shares}
     assert list(shares) == list(BLEND_SHARES)
-    for row in shares.values():
-        assert (row["frames_better"], row["frames_worse"]) == frames_against(
-            row["frame_errors"], shares[DEFAULT_BLEND_SHARE]["frame_errors"])
-        assert sum(row["frame_errors"].values()) == row["fp"] + row["fn"]
-    assert results["blend"]["chosen"] == pick_share(list(shares.values()))
+    for score in shares.values():
+        assert (score.frames_better, score.frames_worse) == frames_against(
+            score.frame_errors, shares[DEFAULT_BLEND_SHARE].frame_errors)
+        assert sum(score.frame_errors.values()) == score.counts.fp + score.counts.fn
+    assert blend.chosen == pick_share(list(shares.values())) and blend.weights.is_file()
 
 
-def _share(share: float, f1: float, better: int, worse: int) -> dict:
-    return {"share": share, "f1": f1, "frames_better": better, "frames_worse": worse}
+def _share(share: float, f1: float, better: int, worse: int) -> BlendScore:
+    return BlendScore(share, Counts(), 0.0, 0.0, f1, {}, better, worse)
 
 
 @pytest.mark.parametrize("better, worse, chosen", [(1, 0, 0.5), (4, 0, 0.5), (5, 0, 1.0), (6, 1, 0.5), (7, 1, 1.0)])
@@ -120,7 +121,7 @@ def test_among_the_shares_that_pass_the_best_valid_f1_wins_and_a_broken_fine_tun
 def test_frames_are_counted_better_or_worse_by_their_errors():
     default = {"a.jpg": 1, "b.jpg": 0, "c.jpg": 2}
     assert frames_against({"a.jpg": 0, "b.jpg": 0, "c.jpg": 3}, default) == (1, 1)
-    assert frame_errors([{"image": "a.jpg", "tp": 1, "fp": 1, "fn": 2}]) == {"a.jpg": 3}
+    assert frame_errors((FrameCounts("a.jpg", Counts(tp=1, fp=1, fn=2)),)) == {"a.jpg": 3}
 
 
 def test_a_rerun_skips_every_finished_stage_and_redoes_what_was_lost(export, finished, tmp_path):
@@ -131,7 +132,7 @@ def test_a_rerun_skips_every_finished_stage_and_redoes_what_was_lost(export, fin
     run_finetune(export, copy, TINY)
     after = json.loads((copy / StageLedger.FILE_NAME).read_text())
     assert after["train"] == before["train"]  # not trained again
-    assert after["export model"]["seconds"] != before["export model"]["seconds"]
+    assert after["export"]["seconds"] != before["export"]["seconds"]
     assert (copy / "models" / "poles-finetuned.onnx").is_file()
 
 
@@ -173,9 +174,9 @@ def test_an_export_without_a_valid_split_is_split_from_its_train_frames(dataset_
         for path in (dataset_copy / "valid" / folder).iterdir():
             path.unlink()
     train = len(load_dataset(dataset_copy).split("train"))
-    summary = prepare_export(dataset_copy, tmp_path / "prepared", None, seed=0)
+    summary = prepare_dataset(dataset_copy, tmp_path / "prepared", None, seed=0)
     prepared = load_dataset(tmp_path / "prepared")
-    assert summary["valid_made_from_train"] and len(prepared.split("valid")) >= 1
+    assert summary.valid_made_from_train and summary.frames.valid == len(prepared.split("valid")) >= 1
     assert len(prepared.split("train")) + len(prepared.split("valid")) == train
 
 
@@ -251,10 +252,10 @@ def test_training_interrupted_after_an_epoch_resumes_from_it(export, tmp_path, m
     with pytest.raises(KeyboardInterrupt):
         run_finetune(export, tmp_path / "run", TINY)
     assert (tmp_path / "run" / "train" / "weights" / "last.pt").is_file()
-    results = run_finetune(export, tmp_path / "run", TINY)
+    result = run_finetune(export, tmp_path / "run", TINY)
     assert calls == [False, True]  # the second call resumed the first run
     assert hours[1] < hours[0]  # with what the first left of its budget
-    assert results["train"]["epochs"] >= 2 and (tmp_path / "run" / "models" / "poles-finetuned.onnx").is_file()
+    assert result.stages.train.epochs >= 2 and (tmp_path / "run" / "models" / "poles-finetuned.onnx").is_file()
 
 
 def _magenta_frames(folder: Path) -> int:
@@ -278,11 +279,11 @@ def test_rehearsal_frames_are_drawn_over_the_teams_own_backgrounds(tmp_path):
     (tmp_path / "field").mkdir()
     for index in range(2):
         cv2.imwrite(str(tmp_path / "field" / f"empty{index}.png"), np.full((480, 640, 3), (200, 40, 160), np.uint8))
-    paint = {"letters": {"p": [0.9, 0.4, 0.6], "b": [0.3, 0.5, 0.7], "y": [1.0, 0.9, 0.5], "g": [0.3, 0.4, 0.3]}}
+    paint = TeamPaint({"p": (0.9, 0.4, 0.6), "b": (0.3, 0.5, 0.7), "y": (1.0, 0.9, 0.5), "g": (0.3, 0.4, 0.3)}, {})
     recipe = FinetuneRecipe(backgrounds=str(tmp_path / "field"), backdrop_share=1.0)
     drawn = _render_rehearsal(tmp_path / "over", paint, 6, recipe, scan_backdrops(tmp_path / "field"))
     _render_rehearsal(tmp_path / "rooms", paint, 6, FinetuneRecipe(backdrop_share=1.0), ())
-    assert drawn["backdrops"] == 2
+    assert drawn.backdrops == 2
     assert _magenta_frames(tmp_path / "over") >= 5 and _magenta_frames(tmp_path / "rooms") == 0
 
 

@@ -6,17 +6,16 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from detector.evaluation.counting import precision_recall
 from detector.evaluation.paired import f1_difference
+from detector.evaluation.results import Counts, FrameCounts
 
 
-def _frames(counts: list[tuple[int, int, int]]) -> list[dict]:
-    return [{"image": f"frame_{i:03d}.jpg", "tp": tp, "fp": fp, "fn": fn, "tn": 0}
-            for i, (tp, fp, fn) in enumerate(counts)]
+def _frames(counts: list[tuple[int, int, int]]) -> list[FrameCounts]:
+    return [FrameCounts(f"frame_{i:03d}.jpg", Counts(tp, fp, fn)) for i, (tp, fp, fn) in enumerate(counts)]
 
 
-def _pooled_f1(frames: list[dict]) -> float:
-    return precision_recall({key: sum(f[key] for f in frames) for key in ("tp", "fp", "fn")})[2]
+def _pooled_f1(frames: list[FrameCounts]) -> float:
+    return sum((frame.counts for frame in frames), Counts()).precision_recall()[2]
 
 
 def test_a_model_against_itself_differs_by_nothing_on_every_draw():

@@ -162,7 +162,7 @@ def test_overlay_video_at_a_smaller_input_draws_no_range_the_calibration_cannot_
 
     own = overlay_video(frames, tmp_path / "own.mp4", progress=False)
     small = overlay_video(frames, tmp_path / "small.mp4", progress=False, input_width=320)
-    assert (own["ranges"], small["ranges"]) == (True, False)  # the shipped calibration is the 640 px one
+    assert (own.ranges, small.ranges) == (True, False)  # the shipped calibration is the 640 px one
     assert main(["predict", "--video", str(frames), "--out", str(tmp_path / "cli.mp4"), "--imgsz", "320"]) == 0
     assert "no ranges drawn" in capsys.readouterr().out
     assert main(["predict", "--images", str(frames), "--out", str(tmp_path / "labels"), "--imgsz", "320"]) == 2

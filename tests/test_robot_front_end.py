@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 
 from detector.crops.samples import NO_POLE, crops_of_dataset, pole_for
 from detector.evaluation.counting import evaluate_image
+from detector.evaluation.results import Counts
 from detector.synth.render import render_scene
 from detector.synth.scene import calibration_scene
 from naoslam.camera import PinholeCamera
@@ -144,6 +145,21 @@ def test_the_crop_network_keeps_the_best_epoch_or_the_last_as_asked(tiny_crop_mo
         CropTrainSettings(keep="first")
 
 
+def test_train_robot_prints_and_keeps_what_it_made(synth_dataset, tmp_path, capsys):
+    """`poles train-robot`'s summary is printed and kept in history.json, both reading back as one typed result."""
+    from detector.cli import main
+    from detector.robot_training import RobotTraining
+
+    out = tmp_path / "robot"
+    assert main(["train-robot", str(synth_dataset), "--out", str(out), "--epochs", "1", "--threads", "1"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    printed = RobotTraining.from_json(json.loads("\n".join(lines[lines.index("{"):])))
+    kept = json.loads((out / "history.json").read_text())
+    assert RobotTraining.from_json({k: v for k, v in kept.items() if k != "history"}) == printed
+    assert printed.epochs == len(kept["history"]) == 1 and printed.model == out / "poles-robot.onnx"
+    assert isinstance(load_detector(printed.model), CropDetector) and 0 < printed.operating_conf < 1
+
+
 def test_the_two_stage_front_end_runs_without_the_training_side(tiny_crop_model):
     path, _, _ = tiny_crop_model
     assert_runs_without_training_side(
@@ -158,7 +174,7 @@ def test_a_box_only_front_end_is_scored_by_box_iou():
     off = Detection.from_box("pb", 0.9, (46, 20, 58, 80))  # half a pole to the side
     by_box = evaluate_image("f", ["pb"], [mask], [None], [hit, off], mask.shape, "box")
     assert by_box.overlap[0, 0] == pytest.approx(1.0) and by_box.overlap[1, 0] == pytest.approx(6 / 18)
-    assert by_box.counts(0.5) == {"tp": 1, "fp": 1, "fn": 0, "tn": 0}
+    assert by_box.counts(0.5) == Counts(tp=1, fp=1)
     by_mask = evaluate_image("f", ["pb"], [mask], [None], [hit], mask.shape, "mask")
     assert by_mask.overlap[0, 0] < 1.0
 

@@ -373,7 +373,7 @@ def test_evaluate_uses_the_shipped_model_at_its_threshold(synth_dataset, tmp_pat
 
     assert metrics["model"] == shipped_model().name
     assert math.isclose(metrics["conf"], LandmarkDetector().conf)
-    assert metrics["tp"] > 0
+    assert metrics["counts"]["tp"] > 0
 
 
 def test_openvino_engine_gives_onnxruntimes_answers_on_the_whole_frame_and_the_band():
@@ -426,7 +426,7 @@ def test_input_width_is_refused_off_the_stride_and_for_a_fixed_size_model(tiny_o
 
 def test_evaluate_and_slam_take_the_input_width(synth_dataset, tmp_path, capsys):
     assert main(["evaluate", str(synth_dataset), "--imgsz", "320", "--out", str(tmp_path / "eval")]) == 0
-    assert json.loads((tmp_path / "eval" / "metrics.json").read_text())["tp"] > 0
+    assert json.loads((tmp_path / "eval" / "metrics.json").read_text())["counts"]["tp"] > 0
     assert main(["slam", "--sim", "square", "--imgsz", "320", "--out", str(tmp_path / "slam")]) == 2
     assert "--imgsz is a model's input width" in capsys.readouterr().err
     assert not (tmp_path / "slam").exists()

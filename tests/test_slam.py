@@ -251,7 +251,7 @@ def test_localisation_rows_run_only_where_the_start_is_a_true_pose_on_a_known_ma
     elsewhere = replace(walk, start=walk.start + np.array([1.0, 0.0, 0.0]))
     assert localisable(walk) and not localisable(unmapped) and not localisable(elsewhere)
     rows = compare_backends(lambda seed: elsewhere, [0], BACKENDS)
-    assert [row["backend"] for row in rows] == [n for n, c in BACKENDS.items() if not isinstance(c, LocalisationConfig)]
+    assert [row.backend for row in rows] == [n for n, c in BACKENDS.items() if not isinstance(c, LocalisationConfig)]
 
 
 def test_ekf_and_eif_agree_on_one_linear_step():

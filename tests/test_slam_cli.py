@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from detector.cli import main
-from detector.slam.comparison import BACKENDS, REFERENCE_ROW
+from detector.slam.comparison import BACKENDS, REFERENCE_ROW, BackendRow
 from detector.slam.sequences import FrontEndSpec, recorded_sequence
 from naoslam.landmarks import CLASSES
 from naoslam.measurement import PowerLaw, RangeCalibration
@@ -28,15 +28,15 @@ def test_slam_command_writes_metrics_map_path_plots_and_comparison(tmp_path, cap
         assert set(metrics[key]) >= {"mean", "std", "rmse"}
     assert metrics["label"] == "FEJ-EKF + odometry scales + NN association + separation 0.5 m + gate 9.21 + min view 3"
     assert {"nees", "nis", "counts", "time_per_step_us", "phantoms", "landmarks_missing"} <= set(metrics)
-    rows = json.loads((out / "comparison.json").read_text())
-    assert [row["backend"] for row in rows] == [*BACKENDS, REFERENCE_ROW] and all(row["seeds"] == 2 for row in rows)
+    rows = [BackendRow.from_json(row) for row in json.loads((out / "comparison.json").read_text())]
+    assert [row.backend for row in rows] == [*BACKENDS, REFERENCE_ROW] and all(row.seeds == 2 for row in rows)
     reference = rows[-1]
-    assert reference["landmark_error"] < rows[0]["landmark_error"] and reference["phantoms"] == 0
-    by_name = {row["backend"]: row for row in rows}
+    assert reference.landmark_error < rows[0].landmark_error and reference.phantoms == 0
+    by_name = {row.backend: row for row in rows}
     ekf, eif = by_name["EKF localisation, known map"], by_name["EIF localisation, known map"]
     pose_only = by_name["EKF localisation, known map, no odometry scales (thesis)"]
-    assert "landmark_error" not in ekf and ekf["robot_error"] == pytest.approx(eif["robot_error"], abs=0.005)
-    assert 3 * ekf["robot_error"] < pose_only["robot_error"] and ekf["nees"] < pose_only["nees"] / 10
+    assert ekf.landmark_error is None and ekf.robot_error == pytest.approx(eif.robot_error, abs=0.005)
+    assert 3 * ekf.robot_error < pose_only.robot_error and ekf.nees < pose_only.nees / 10
     for name in ("map.png", "errors.png"):
         assert cv2.imread(str(out / name)) is not None
     assert len((out / "path.csv").read_text().splitlines()) == 301 + 1

@@ -5,6 +5,7 @@ import json
 import os
 import shutil
 from dataclasses import replace
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -17,7 +18,7 @@ from detector.training.curves import read_results
 from detector.model_files import read_checkpoint, read_info
 from export.onnx_export import export_onnx
 from export.quantize import decode_head_nodes
-from export.run import ExportJob, ExportMismatch, run_export
+from export.run import ExportJob, ExportMismatch, ExportReport, run_export
 from naoslam.detector import LandmarkDetector
 from naoslam.landmarks import CLASSES
 
@@ -27,8 +28,9 @@ def test_training_writes_run_curves_and_best_epoch(tiny_run):
     assert read_results(tiny_run / "results.csv")["epoch"] == [1.0]
     curves = cv2.imread(str(tiny_run / "training_curves.png"))
     assert curves is not None and curves.shape[1] > 1000
-    summary = summarise_run(tiny_run)
-    assert summary["best_epoch"] == 1 and 0.0 <= summary["mAP50(M)"] <= 1.0
+    summary = summarise_run(tiny_run, "yolov8n-seg")
+    assert summary.best.epoch == 1 and 0.0 <= summary.best.mask_map50 <= 1.0
+    assert summary.weights == tiny_run / "weights" / "best.pt" and summary.weights.is_file()
 
 
 def test_training_uses_every_core_it_may_run_on(tiny_run):
@@ -100,13 +102,13 @@ def test_run_export_verifies_quantizes_and_reports(tiny_weights, synth_dataset, 
         assert detector.any_input_size and detector.input_hw == (96, 128)
         outputs = detector.forward(detector.prepare(np.zeros((40, 128, 3), np.uint8), (64, 128))[0])
         assert outputs[1].shape[2:] == (16, 32)
-    assert report["fp32_problems"] == []
-    fp32 = report["fp32_vs_pytorch"]
-    assert fp32["matched"] == fp32["reference"] > 0 and fp32["box_iou_min"] > 0.99
+    assert report.fp32_problems == ()
+    fp32 = report.fp32_vs_pytorch
+    assert fp32.matched == fp32.reference > 0 and fp32.box_iou_min > 0.99
     assert read_info(job.int8_path).extra["precision"] == "int8"
-    assert report["int8_vs_fp32"]["matched"] > 0
-    assert set(report["latency_ms"]) == {"fp32", "int8"} and report["recommended"] in ("fp32", "int8")
-    assert json.loads(job.report_path.read_text())["onnx"] == str(job.out)
+    assert report.int8_vs_fp32.matched > 0
+    assert set(report.latency_ms) == {"fp32", "int8"} and report.recommended in ("fp32", "int8")
+    assert ExportReport.from_json(json.loads(job.report_path.read_text())) == report
 
 
 def test_run_export_fails_and_writes_nothing_when_onnx_disagrees(tiny_weights, synth_dataset, tmp_path,
@@ -241,11 +243,10 @@ def test_an_export_off_ultralytics_grid_is_checked_at_it_and_must_be_dynamic():
 
 def test_an_export_whose_frames_show_no_detection_says_nothing_was_compared(capsys):
     from export.run import print_report
+    from export.verify import compare
 
-    empty = {"frames": 4, "reference": 0, "candidate": 0, "matched": 0, "unmatched_confident": 0,
-             "class_mismatches": 0, "box_iou_min": 1.0, "box_iou_mean": 1.0, "mask_iou_min": 1.0,
-             "mask_iou_mean": 1.0, "score_diff_max": 0.0}
-    print_report({"input_hw": [480, 640], "verify_frames": 4, "conf": 0.25, "fp32_vs_pytorch": empty,
-                  "fp32_problems": [], "latency_ms": {"fp32": 40.0}, "recommended": "fp32", "onnx": "m.onnx"})
+    empty = compare([[]] * 4, [[]] * 4, conf=0.25)
+    print_report(ExportReport(Path("m.pt"), Path("m.onnx"), (480, 640), False, (480, 640), 4, 0.25, empty, (),
+                              {"fp32": 40.0}, "fp32"))
     printed = capsys.readouterr().out
     assert "nothing compared" in printed and "agrees" not in printed

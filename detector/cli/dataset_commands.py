@@ -137,7 +137,7 @@ def _synth(args: argparse.Namespace) -> int:
     out = generate_dataset(args.out, job, workers=args.workers, preview=args.preview, force=args.force,
                            protect=existing(args.backgrounds, args.paint_from))
     if paint is not None:
-        write_json(out / "paint.json", paint.as_json())
+        write_json(out / "paint.json", paint.to_json())
     print(f"wrote {images} images to {out}")
     return 0
 
@@ -192,12 +192,11 @@ def _augment(args: argparse.Namespace) -> int:
               else AugmentConfig(**{k: v for k, v in settings.items() if v is not None}))
     summary = augment_dataset(args.data, args.out, copies=args.copies, seed=args.seed, config=config,
                               preview=args.preview, force=args.force, workers=args.workers)
-    print(f"train images: {summary['train_images_in']} -> {summary['train_images_out']}; instances in copies kept "
-          f"{summary['instances_kept']}, dropped {summary['instances_dropped']} (clipped away or too small)")
-    print("operations used: " + (", ".join(f"{k} {v}" for k, v in sorted(summary["operations"].items()))
-                                 or "none"))
-    if "preview" in summary:
-        print(f"preview: {summary['preview']}")
+    print(f"train images: {summary.train_images_in} -> {summary.train_images_out}; instances in copies kept "
+          f"{summary.instances_kept}, dropped {summary.instances_dropped} (clipped away or too small)")
+    print("operations used: " + (", ".join(f"{k} {v}" for k, v in sorted(summary.operations.items())) or "none"))
+    if summary.preview is not None:
+        print(f"preview: {summary.preview}")
     return 0
 
 
@@ -209,5 +208,5 @@ def _split(args: argparse.Namespace) -> int:
     if abs(total - 1) > 1e-6:  # the split divides by the sum; say so rather than let 0.7 0.2 0.2 pass unnoticed
         shares = ", ".join(f"{split} {100 * r / total:.0f} %" for split, r in zip(RATIO_ORDER, args.ratios))
         print(f"--ratios sum to {total:g}, so they were used as shares: {shares}")
-    print("images per split: " + ", ".join(f"{k} {v}" for k, v in counts.items()))
+    print(f"images per split: train {counts.train}, valid {counts.valid}, test {counts.test}")
     return 0

@@ -24,6 +24,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
 
 def _demo(args: argparse.Namespace) -> int:
     choose_wait_policy(args.threads)
-    from detector.demo.pipeline import BUDGETS, run_demo
+    from detector.demo.budget import BUDGETS
+    from detector.demo.pipeline import run_demo
 
     return run_demo(args.out, BUDGETS[args.budget], args.seed)

@@ -89,10 +89,10 @@ def _predict(args: argparse.Namespace) -> int:
         if args.imgsz is not None:
             raise ValueError("--imgsz is for --video: pre-labels come from the model at its own input size")
         result = prelabel(args.images, args.out, args.model, args.conf, args.format, args.force)
-        print(f"pre-labelled {result['frames']} frames ({result['poles']} poles, {result['empty']} without) at conf "
-              f"{result['conf']:.2f}: {result['out']} - upload it to Roboflow as pre-annotations, correct, export")
+        print(f"pre-labelled {result.frames} frames ({result.poles} poles, {result.empty} without) at conf "
+              f"{result.conf:.2f}: {result.out} - upload it to Roboflow as pre-annotations, correct, export")
     else:
-        result = overlay_video(args.video, args.out, args.model, args.conf, args.force, input_width=args.imgsz)
-        print(f"wrote {result['frames']} frames to {result['video']} and the contact sheet {result['sheet']}"
-              + ("" if result["ranges"] else " (no ranges drawn: the model has no calibration for this input width)"))
+        video = overlay_video(args.video, args.out, args.model, args.conf, args.force, input_width=args.imgsz)
+        print(f"wrote {video.frames} frames to {video.video} and the contact sheet {video.sheet}"
+              + ("" if video.ranges else " (no ranges drawn: the model has no calibration for this input width)"))
     return 0

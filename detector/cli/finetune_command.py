@@ -67,11 +67,11 @@ def _finetune(args: argparse.Namespace) -> int:
                             backgrounds=str(args.backgrounds) if args.backgrounds else None, freeze=args.freeze,
                             lr0=args.lr0, imgsz=args.imgsz, seed=args.seed,
                             evaluation_frames=args.evaluation_frames)
-    results = run_finetune(args.export, args.out, recipe, parse_renames(args.rename))
-    for line in changes(results["evaluate"]):
+    result = run_finetune(args.export, args.out, recipe, parse_renames(args.rename))
+    stages = result.stages
+    for line in changes(stages.evaluate):
         print(line)
-    model = results["export model"]
-    int8 = f" (INT8: {model['int8']})" if model["int8"] else ""
-    print(f"blend share {results['blend']['chosen']:g} chosen on your valid split; model: {model['fp32']}{int8}; "
-          f"report: {results['report']}")
+    int8 = f" (INT8: {stages.export.int8})" if stages.export.int8 else ""
+    print(f"blend share {stages.blend.chosen:g} chosen on your valid split; model: {stages.export.fp32}{int8}; "
+          f"report: {result.report}")
     return 0

@@ -42,5 +42,5 @@ def _train_robot(args: argparse.Namespace) -> int:
     settings = CropTrainSettings(epochs=args.epochs, seed=args.seed, threads=args.threads, minutes=args.minutes)
     result = train_robot_front_end(args.data, args.out, settings, args.weights, args.force,
                                    protect=existing(*args.data, args.weights))
-    print(json.dumps(result, indent=1))
+    print(json.dumps(result.to_json(), indent=1))
     return 0

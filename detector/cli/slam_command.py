@@ -14,6 +14,7 @@ from naoslam.sim import PATHS, SimConfig
 
 if TYPE_CHECKING:  # the front ends and the runner load when a run needs them, not with every `poles` command
     from detector.slam.sequences import FrontEndSpec
+    from detector.slam.figures import RunFigures
     from naoslam.runner import LocalisationConfig, Sequence
 
 #: The defaults every flag below shows and falls back to: the runtime's own.
@@ -98,15 +99,13 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     slam.set_defaults(run=_slam)
 
 
-def _run_summary(metrics: dict, localising: bool) -> str:
+def _run_summary(figures: RunFigures, localising: bool) -> str:
     """One line of a run's figures: its errors where there was truth to score against, else what it saw."""
-    errors = [f"{key} mean {metrics[key]['mean']:.3f} m" for key in ("robot_error", "landmark_error", "odometry_error")
-              if key in metrics]
+    errors = [f"{name} error mean {value:.3f} m" for name, value in figures.errors().items()]
     if errors:
         return ", ".join(errors)
-    counts = metrics["counts"]
-    mapped = "" if localising else f", {counts['initialised']} landmarks mapped"
-    return f"no truth to score against: {counts['accepted']} sightings accepted{mapped}"
+    mapped = "" if localising else f", {figures.initialised} landmarks mapped"
+    return f"no truth to score against: {figures.accepted} sightings accepted{mapped}"
 
 
 def _slam(args: argparse.Namespace) -> int:
@@ -144,7 +143,7 @@ def _slam(args: argparse.Namespace) -> int:
             seeds = list(range(args.seed, args.seed + (args.compare if args.sim else 1)))
             reference = smooth if args.sim and not front_end else None
             rows = compare_backends(lambda s: sequence if s == args.seed else make(s), seeds, BACKENDS, reference)
-            write_json(out / "comparison.json", rows)
+            write_json(out / "comparison.json", [row.to_json() for row in rows])
     print(f"{config.label} on {sequence.name}: {_run_summary(metrics, localising=bool(args.map))}; wrote {args.out}")
     if rows is not None:
         print_comparison(rows, f"back ends on {sequence.name} ({len(seeds)} seed(s))")

@@ -121,10 +121,10 @@ def _train(args: argparse.Namespace) -> int:
                              cache=not args.no_cache, time_hours=args.time, device=args.device, teacher=args.teacher,
                              hyperparameters=parse_hyperparameters(args.hyperparameters))
     run = train_model(args.data, args.out, settings, weights=weights, resume=args.resume)
-    best = summarise_run(run)
-    print(f"best epoch {best['best_epoch']} of {best['epochs']} (validation): mask mAP50 {best['mAP50(M)']:.3f}, "
-          f"mAP50-95 {best['mAP50-95(M)']:.3f}; weights {run / 'weights' / 'best.pt'}; "
-          f"curves {run / 'training_curves.png'}")
+    summary = summarise_run(run, settings.model, weights, 60 * args.time if args.time else None)
+    best = summary.best
+    print(f"best epoch {best.epoch} of {best.epochs} (validation): mask mAP50 {best.mask_map50:.3f}, "
+          f"mAP50-95 {best.mask_map50_95:.3f}; weights {summary.weights}; curves {summary.curves}")
     return 0
 
 

@@ -7,6 +7,7 @@ import os
 import shutil
 from collections import Counter
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
 
@@ -20,6 +21,7 @@ from detector.datasets.model import IMAGE_SUFFIXES, SPLITS, Dataset, DatasetErro
 from detector.datasets.names import class_codes, unknown_class_problems
 from detector.atomic import atomic_folder
 from detector.outputs import check_output_folder, mark_output
+from detector.records import JsonRecord
 from naoslam.landmarks import CLASSES
 
 #: The kind of output a dataset folder is (``detector.outputs``).
@@ -251,6 +253,15 @@ def _duplicate_stems(samples: list[Sample]) -> list[Problem]:
     return problems
 
 
+@dataclass(frozen=True)
+class SplitCounts(JsonRecord):
+    """Frames per split of a dataset."""
+
+    train: int
+    valid: int
+    test: int
+
+
 class DatasetWriter:
     """Write a dataset in the Roboflow layout into a temporary sibling folder, then move it into place.
 
@@ -287,6 +298,11 @@ class DatasetWriter:
         (self.tmp / split / "labels" / f"{Path(filename).stem}.txt").write_text("".join(f"{line}\n" for line in lines))
         self.counts[split] += 1
         return self.out / split / "images" / filename
+
+    @property
+    def frames(self) -> SplitCounts:
+        """Frames written so far, per split."""
+        return SplitCounts(**self.counts)
 
     def copy_sample(self, sample: Sample) -> None:
         """Copy an image byte for byte with its instances, written by class name in this dataset's class order

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from detector.datasets.intake import open_dataset
-from detector.datasets.io import DatasetWriter
+from detector.datasets.io import DatasetWriter, SplitCounts
 from detector.datasets.model import Sample
 from detector.datasets.truth import read_annotations
 
@@ -53,7 +53,7 @@ def stratified_assignment(samples: list[Sample], ratios: dict[str, float], seed:
 
 
 def split_dataset(data: str | Path, out: str | Path, ratios: tuple[float, float, float] = THESIS_RATIOS,
-                  seed: int = 0, force: bool = False) -> dict[str, int]:
+                  seed: int = 0, force: bool = False) -> SplitCounts:
     """Write a copy of every image of ``data`` into new splits; returns images per split. An ``annotations.json`` of
     ``poles synth`` (true ranges, camera poses) goes along, each image's entry naming its new split."""
     if len(ratios) != 3 or not all(math.isfinite(r) and r >= 0 for r in ratios):
@@ -73,4 +73,4 @@ def split_dataset(data: str | Path, out: str | Path, ratios: tuple[float, float,
                 entry["split"] = split
         if annotations is not None:
             writer.write_json("annotations.json", annotations)
-    return dict(writer.counts)
+    return writer.frames

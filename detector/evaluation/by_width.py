@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from detector.evaluation.counting import ImageEvaluation, label_width_px
+from detector.evaluation.results import WidthRecall
 
 __all__ = ["WIDTH_EDGES_PX", "label_width_px", "recall_by_width", "width_bin_names"]
 
@@ -15,8 +16,8 @@ def width_bin_names() -> list[str]:
     return ([f"< {edges[0]} px"] + [f"{lo}-{hi} px" for lo, hi in zip(edges, edges[1:])] + [f">= {edges[-1]} px"])
 
 
-def recall_by_width(images: list[ImageEvaluation], conf: float) -> list[dict]:
-    """Labels, labels found (a true positive at ``conf``) and recall in each width bin; recall None for an empty bin."""
+def recall_by_width(images: list[ImageEvaluation], conf: float) -> list[WidthRecall]:
+    """Labels and labels found (a true positive at ``conf``) in each width bin."""
     names = width_bin_names()
     labels, found = [0] * len(names), [0] * len(names)
     for image in images:
@@ -25,5 +26,4 @@ def recall_by_width(images: list[ImageEvaluation], conf: float) -> list[dict]:
             bin_index = sum(width >= edge for edge in WIDTH_EDGES_PX)
             labels[bin_index] += 1
             found[bin_index] += r in matched
-    return [{"width": name, "labels": n, "found": k, "recall": k / n if n else None}
-            for name, n, k in zip(names, labels, found)]
+    return [WidthRecall(name, n, k) for name, n, k in zip(names, labels, found)]

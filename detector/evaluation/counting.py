@@ -13,6 +13,7 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
+from detector.evaluation.results import Counts, MapScores, SweepPoint
 from detector.matching import box_iou, greedy_match, mask_box, mask_iou
 from naoslam.detections import Detection, rotated_box_of_mask
 
@@ -57,12 +58,12 @@ class ImageEvaluation:
         pairs = greedy_match(self.overlap[kept], self.scores[kept], iou, self.same_class[kept])
         return [(int(kept[p]), r) for p, r in pairs]
 
-    def counts(self, conf: float) -> dict[str, int]:
+    def counts(self, conf: float) -> Counts:
         """TP, FP, FN and TN of this image at ``conf``, as the thesis counted them (TN: no label, no detection)."""
         tp = len(self.match(conf))
         kept = len(self.kept(conf))
         labels = len(self.truth_classes)
-        return {"tp": tp, "fp": kept - tp, "fn": labels - tp, "tn": int(labels == 0 and kept == 0)}
+        return Counts(tp, kept - tp, labels - tp, int(labels == 0 and kept == 0))
 
 
 def evaluate_image(name: str, truth_classes: list[str], truth_masks: list[np.ndarray], truth: list[dict | None],
@@ -100,23 +101,9 @@ def _inside(point: tuple[float, float], mask: np.ndarray) -> bool:
     return 0 <= y < mask.shape[0] and 0 <= x < mask.shape[1] and bool(mask[y, x])
 
 
-def totals(images: list[ImageEvaluation], conf: float) -> dict[str, int]:
+def totals(images: list[ImageEvaluation], conf: float) -> Counts:
     """Summed TP, FP, FN, TN over images."""
-    out = {"tp": 0, "fp": 0, "fn": 0, "tn": 0}
-    for image in images:
-        for key, value in image.counts(conf).items():
-            out[key] += value
-    return out
-
-
-def precision_recall(counts: dict[str, int]) -> tuple[float, float, float]:
-    """Precision, recall and F1 from counts. With no detections, precision is 1 only if there was nothing to find;
-    with no labels, recall is 1."""
-    tp, fp, fn = counts["tp"], counts["fp"], counts["fn"]
-    precision = tp / (tp + fp) if tp + fp else float(fn == 0)
-    recall = tp / (tp + fn) if tp + fn else 1.0
-    f1 = 2 * precision * recall / (precision + recall) if precision + recall else 0.0
-    return precision, recall, f1
+    return sum((image.counts(conf) for image in images), Counts())
 
 
 @dataclass(frozen=True)
@@ -169,25 +156,21 @@ def confusion_matrix(images: list[ImageEvaluation], outcomes: list[Outcome], cla
     return matrix
 
 
-def confidence_sweep(images: list[ImageEvaluation], thresholds: np.ndarray | None = None) -> list[dict]:
+def confidence_sweep(images: list[ImageEvaluation], thresholds: np.ndarray | None = None) -> list[SweepPoint]:
     """Precision, recall and F1 at each confidence threshold."""
     thresholds = np.round(np.arange(0.05, 1.0, 0.05), 2) if thresholds is None else thresholds
-    rows = []
-    for t in thresholds:
-        p, r, f1 = precision_recall(totals(images, float(t)))
-        rows.append({"conf": float(t), "precision": p, "recall": r, "f1": f1})
-    return rows
+    return [SweepPoint(float(t), *totals(images, float(t)).precision_recall()) for t in thresholds]
 
 
-def best_threshold(sweep: list[dict]) -> float | None:
+def best_threshold(sweep: list[SweepPoint]) -> float | None:
     """The threshold of the sweep's best F1, or None when every threshold counts the same (a front end whose
     detections all have one confidence, as the colour filter's do): then no threshold is better than another."""
-    if len({round(row["f1"], 9) for row in sweep}) == 1:
+    if len({round(point.f1, 9) for point in sweep}) == 1:
         return None
-    return max(sweep, key=lambda row: row["f1"])["conf"]
+    return max(sweep, key=lambda point: point.f1).conf
 
 
-def map_scores(images: list[ImageEvaluation], classes: tuple[str, ...]) -> dict[str, float] | None:
+def map_scores(images: list[ImageEvaluation], classes: tuple[str, ...]) -> MapScores | None:
     """Ultralytics' mAP50 and mAP50-95 over the images' IoU, mask or box (None for the colour filter's points)."""
     if not images or images[0].matching == "point":
         return None
@@ -207,4 +190,4 @@ def map_scores(images: list[ImageEvaluation], classes: tuple[str, ...]) -> dict[
     if not target_cls:
         return None
     ap = ap_per_class(np.concatenate(tp_rows), np.array(conf), np.array(pred_cls), np.array(target_cls))[5]
-    return {"map50": float(ap[:, 0].mean()), "map50_95": float(ap.mean())}
+    return MapScores(float(ap[:, 0].mean()), float(ap.mean()))

@@ -8,10 +8,14 @@ its light, backdrop and camera and are not independent.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import stats
+
+from detector.evaluation.results import FrameCounts
+from detector.records import JsonRecord
 
 #: The name of the shipped model, as installed, wherever another model is compared with it (a row, a folder).
 REFERENCE = "shipped"
@@ -24,7 +28,7 @@ DRAWS_AT_ONCE = 100
 
 
 @dataclass(frozen=True)
-class F1Difference:
+class F1Difference(JsonRecord):
     """``second``'s F1 minus ``first``'s on the same frames, and its 95 % interval over frames."""
 
     difference: float
@@ -32,11 +36,11 @@ class F1Difference:
     high: float
 
 
-def f1_difference(first: list[dict], second: list[dict], draws: int = BOOTSTRAP_DRAWS,
+def f1_difference(first: Sequence[FrameCounts], second: Sequence[FrameCounts], draws: int = BOOTSTRAP_DRAWS,
                   seed: int = BOOTSTRAP_SEED) -> F1Difference:
-    """Paired bootstrap of the F1 difference between two evaluations' ``per_image`` counts (``tp``, ``fp``, ``fn``
-    per frame, as ``poles evaluate`` writes them). Both must list the same frames in the same order."""
-    if [row["image"] for row in first] != [row["image"] for row in second]:
+    """Paired bootstrap of the F1 difference between two evaluations' counts per frame (``Evaluation.per_image``).
+    Both must list the same frames in the same order."""
+    if [row.image for row in first] != [row.image for row in second]:
         raise ValueError("the two evaluations were not made on the same frames: compare models on one split")
     columns = (*_counts(first).T, *_counts(second).T)  # tp, fp, fn of the first, then of the second, per frame
     if len(columns[0]) < 2:  # one frame cannot be resampled: its difference is all there is
@@ -53,12 +57,13 @@ def _difference(tp_a, fp_a, fn_a, tp_b, fp_b, fn_b, axis: int = -1) -> np.ndarra
     return _f1(tp_b.sum(axis), fp_b.sum(axis), fn_b.sum(axis)) - _f1(tp_a.sum(axis), fp_a.sum(axis), fn_a.sum(axis))
 
 
-def _counts(per_image: list[dict]) -> np.ndarray:
-    return np.array([[row["tp"], row["fp"], row["fn"]] for row in per_image], dtype=np.int64).reshape(-1, 3)
+def _counts(per_image: Sequence[FrameCounts]) -> np.ndarray:
+    return np.array([[row.counts.tp, row.counts.fp, row.counts.fn] for row in per_image],
+                    dtype=np.int64).reshape(-1, 3)
 
 
 def _f1(tp: np.ndarray, fp: np.ndarray, fn: np.ndarray) -> np.ndarray:
-    """F1 = 2 TP / (2 TP + FP + FN), as `counting.precision_recall` gives it, for many resamples at once; 1 where
+    """F1 = 2 TP / (2 TP + FP + FN), as ``Counts.precision_recall`` gives it, for many resamples at once; 1 where
     nothing was there and nothing was found."""
     denominator = 2 * tp + fp + fn
     return np.where(denominator > 0, 2 * tp / np.maximum(denominator, 1), 1.0)

@@ -9,6 +9,7 @@ import numpy as np
 from matplotlib.ticker import MaxNLocator
 
 from detector.evaluation.counting import ImageEvaluation, best_threshold
+from detector.evaluation.results import FrameCounts, SweepPoint, WidthRecall
 from detector.figures import plt, save_figure
 from detector.preview import draw_label
 from detector.atomic import write_bytes
@@ -21,17 +22,17 @@ TP_BGR, FP_BGR, FN_BGR = (255, 160, 0), (0, 0, 255), (0, 220, 255)
 MAX_NAMED_IMAGES = 40
 
 
-def plot_per_image(per_image: list[dict], png: Path, title: str) -> Path:
+def plot_per_image(per_image: tuple[FrameCounts, ...], png: Path, title: str) -> Path:
     """Stacked bars of TP, FP, FN and TN for every image, named when there are few."""
     fig, ax = plt.subplots(figsize=(max(6, 0.12 * len(per_image) + 2), 3.2), constrained_layout=True)
     x = np.arange(len(per_image))
     bottom = np.zeros(len(per_image))
     for key, colour in COUNT_COLOURS.items():
-        values = np.array([row[key] for row in per_image])
+        values = np.array([getattr(row.counts, key) for row in per_image])
         ax.bar(x, values, bottom=bottom, color=colour, label=key.upper(), width=0.9)
         bottom += values
     if len(per_image) <= MAX_NAMED_IMAGES:
-        ax.set_xticks(x, [Path(row["image"]).stem for row in per_image], rotation=90, fontsize=7)
+        ax.set_xticks(x, [Path(row.image).stem for row in per_image], rotation=90, fontsize=7)
     ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_ylim(0, bottom.max(initial=0) + 1)  # headroom for the legend
     ax.set_xlabel("image")
@@ -41,12 +42,12 @@ def plot_per_image(per_image: list[dict], png: Path, title: str) -> Path:
     return save_figure(fig, png)
 
 
-def plot_sweep(sweep: list[dict], png: Path, title: str) -> Path:
+def plot_sweep(sweep: tuple[SweepPoint, ...], png: Path, title: str) -> Path:
     """Precision, recall and F1 against the confidence threshold."""
     fig, ax = plt.subplots(figsize=(5, 3.2), constrained_layout=True)
-    conf = [row["conf"] for row in sweep]
+    conf = [point.conf for point in sweep]
     for key in ("precision", "recall", "f1"):
-        ax.plot(conf, [row[key] for row in sweep], label=key)
+        ax.plot(conf, [getattr(point, key) for point in sweep], label=key)
     best = best_threshold(sweep)
     if best is not None:
         ax.axvline(best, color="grey", linestyle=":", label=f"best F1 at {best:.2f}")
@@ -61,15 +62,15 @@ def plot_sweep(sweep: list[dict], png: Path, title: str) -> Path:
     return save_figure(fig, png)
 
 
-def plot_recall_by_width(rows: list[dict], png: Path, title: str) -> Path:
+def plot_recall_by_width(rows: tuple[WidthRecall, ...], png: Path, title: str) -> Path:
     """Recall in each pole-width bin as bars, each labelled with found / labels."""
     fig, ax = plt.subplots(figsize=(5, 3.2), constrained_layout=True)
     x = np.arange(len(rows))
-    recall = [row["recall"] or 0.0 for row in rows]
+    recall = [row.recall or 0.0 for row in rows]
     ax.bar(x, recall, color=COUNT_COLOURS["tp"], width=0.7)
     for i, row in enumerate(rows):
-        ax.text(i, recall[i] + 0.02, f"{row['found']}/{row['labels']}", ha="center", fontsize=8)
-    ax.set_xticks(x, [row["width"] for row in rows], fontsize=8)
+        ax.text(i, recall[i] + 0.02, f"{row.found}/{row.labels}", ha="center", fontsize=8)
+    ax.set_xticks(x, [row.width for row in rows], fontsize=8)
     ax.set_xlabel("pole width (rotated box, px in a 640 px wide frame)")
     ax.set_ylabel("recall")
     ax.set_ylim(0, 1.12)
@@ -110,7 +111,7 @@ def write_overlay(image: ImageEvaluation, frame: np.ndarray, detections: list[De
     found, wrong and missed poles outlined (``detections`` with their masks, ``truth_masks``: the labels'). Returns
     whether it was written."""
     counts = image.counts(conf)
-    if not counts["fp"] and not counts["fn"]:
+    if not counts.fp and not counts.fn:
         return False
     frame = frame.copy()
     pairs = image.match(conf)

@@ -14,10 +14,11 @@ from detector.datasets.polygons import polygon_to_mask
 from detector.datasets.truth import load_camera_poses, load_truth
 from detector.evaluation.by_width import recall_by_width, width_bin_names
 from detector.evaluation.counting import (ImageEvaluation, best_threshold, confidence_sweep, confusion_matrix,
-                                          evaluate_image, map_scores, outcome, precision_recall, totals)
+                                          evaluate_image, map_scores, outcome, totals)
 from detector.evaluation.paired import f1_difference
 from detector.evaluation.plots import plot_confusion, plot_per_image, plot_recall_by_width, plot_sweep, write_overlay
 from detector.evaluation.predictors import Predictor
+from detector.evaluation.results import Confusion, ErrorStats, Evaluation, FrameCounts
 from detector.atomic import write_json
 from naoslam.camera import NAO_HFOV_DEG
 from naoslam.landmarks import CLASSES
@@ -27,7 +28,7 @@ from naoslam.shipped import COLOUR_FILTER
 
 
 def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", conf: float = 0.5,
-             progress: bool = True, use_pose: bool = False) -> dict:
+             progress: bool = True, use_pose: bool = False) -> Evaluation:
     """Evaluate ``predictor`` on ``split`` of ``data``; writes ``out``/metrics.json, plots and overlays.
     ``use_pose``: give the front end each frame's camera pose where annotations.json records it, as on the robot."""
     dataset = open_dataset(data, progress=progress)
@@ -47,30 +48,27 @@ def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", c
     poses = load_camera_poses(dataset) if use_pose else {}
     images = evaluate_frames(predictor, samples, truth, f"evaluating {predictor.name}", progress, write_errors, poses)
     counts = totals(images, conf)
-    precision, recall, f1 = precision_recall(counts)
     sweep = confidence_sweep(images)
-    best = max(sweep, key=lambda row: row["f1"])
-    metrics = {"model": predictor.name, "data": str(data), "split": split, "conf": conf, "images": len(images),
-               "matching": predictor.matching, "camera_poses": len(poses),
-               "precision": precision, "recall": recall, "f1": f1, **counts,
-               "mean_iou": _mean_tp_iou(images, conf), "best_f1_conf": best["conf"], "best_f1": best["f1"],
-               "sweep": sweep, "per_image": [{"image": i.name, **i.counts(conf)} for i in images]}
+    best = max(sweep, key=lambda point: point.f1)
     outcomes = [outcome(image, conf) for image in images]
     confusion = confusion_matrix(images, outcomes, CLASSES)
-    metrics["confusion"] = {"labels": [*CLASSES, "none"], "rows": "true", "columns": "detected",
-                            "counts": confusion.tolist()}
-    metrics["class_swaps"] = sum(len(o.swaps) for o in outcomes)
-    metrics["duplicates"] = sum(len(o.duplicates) for o in outcomes)
-    metrics["recall_by_width"] = recall_by_width(images, conf)
-    metrics.update(map_scores(images, CLASSES) or {})
-    metrics.update(_measurement_errors(images, conf, predictor))
+    range_error, bearing_error, divide_error = _measurement_errors(images, conf, predictor)
+    precision, recall, f1 = counts.precision_recall()
+    metrics = Evaluation(
+        model=predictor.name, data=Path(data), split=split, conf=conf, images=len(images),
+        matching=predictor.matching, camera_poses=len(poses), counts=counts, precision=precision, recall=recall, f1=f1,
+        mean_iou=_mean_tp_iou(images, conf), best_f1_conf=best.conf, best_f1=best.f1, sweep=tuple(sweep),
+        per_image=tuple(FrameCounts(image.name, image.counts(conf)) for image in images),
+        confusion=Confusion((*CLASSES, "none"), tuple(tuple(int(c) for c in row) for row in confusion)),
+        class_swaps=sum(len(o.swaps) for o in outcomes), duplicates=sum(len(o.duplicates) for o in outcomes),
+        recall_by_width=tuple(recall_by_width(images, conf)), map=map_scores(images, CLASSES),
+        range_error=range_error, bearing_error=bearing_error, divide_pixel_error=divide_error, overlays=written)
     out.mkdir(parents=True, exist_ok=True)
-    plot_per_image(metrics["per_image"], out / "per_image.png", predictor.name)
-    plot_sweep(sweep, out / "sweep.png", predictor.name)
+    plot_per_image(metrics.per_image, out / "per_image.png", predictor.name)
+    plot_sweep(metrics.sweep, out / "sweep.png", predictor.name)
     plot_confusion(confusion, CLASSES, out / "confusion.png", predictor.name)
-    plot_recall_by_width(metrics["recall_by_width"], out / "recall_by_width.png", predictor.name)
-    metrics["overlays"] = written
-    write_json(out / "metrics.json", metrics)
+    plot_recall_by_width(metrics.recall_by_width, out / "recall_by_width.png", predictor.name)
+    write_json(out / "metrics.json", metrics.to_json())
     return metrics
 
 
@@ -102,13 +100,16 @@ def _mean_tp_iou(images: list[ImageEvaluation], conf: float) -> float | None:
     return float(np.mean(ious)) if ious else 0.0
 
 
-def _stats(values: list[float]) -> dict[str, float]:
+def _stats(values: list[float]) -> ErrorStats | None:
+    """Statistics of the absolute ``values``; None where there are none."""
+    if not values:
+        return None
     a = np.abs(np.array(values))
-    return {"mean": float(a.mean()), "median": float(np.median(a)), "p90": float(np.percentile(a, 90)),
-            "count": len(values)}
+    return ErrorStats(float(a.mean()), float(np.median(a)), float(np.percentile(a, 90)), len(values))
 
 
-def _measurement_errors(images: list[ImageEvaluation], conf: float, predictor: Predictor) -> dict:
+def _measurement_errors(images: list[ImageEvaluation], conf: float,
+                        predictor: Predictor) -> tuple[ErrorStats | None, ErrorStats | None, ErrorStats | None]:
     """Range (m), bearing (deg) and, for the colour filter, band-divide pixel errors of true positives."""
     range_err, bearing_err, pixel_err = [], [], []
     calibration = predictor.calibration
@@ -129,14 +130,7 @@ def _measurement_errors(images: list[ImageEvaluation], conf: float, predictor: P
                     range_err.append(estimate - truth["range_m"])
             if detection.band_centres is not None and truth.get("band_divide_centre_px"):
                 pixel_err.append(math.dist(detection.divide_centre, truth["band_divide_centre_px"]))
-    out = {}
-    if range_err:
-        out["range_error"] = _stats(range_err)
-    if bearing_err:
-        out["bearing_error"] = _stats(bearing_err)
-    if pixel_err:
-        out["divide_pixel_error"] = _stats(pixel_err)
-    return out
+    return _stats(range_err), _stats(bearing_err), _stats(pixel_err)
 
 
 def _range(detection: Detection, calibration: RangeCalibration, image_width: int) -> float | None:
@@ -153,61 +147,60 @@ def _range(detection: Detection, calibration: RangeCalibration, image_width: int
     return calibration.range_from_box(box.width, box.height, image_width, column=column)[0]
 
 
-def _width_recall(m: dict, index: int) -> str:
-    """Recall in one width bin, with its label count ("80 % of 10"); "-" for an empty bin or an older metrics.json."""
-    rows = m.get("recall_by_width")
-    if not rows or not rows[index]["labels"]:
-        return "-"
-    return f"{100 * rows[index]['recall']:.0f} % of {rows[index]['labels']}"
+def _width_recall(m: Evaluation, index: int) -> str:
+    """Recall in one width bin, with its label count ("80 % of 10"); "-" for an empty bin."""
+    row = m.recall_by_width[index]
+    return f"{100 * row.recall:.0f} % of {row.labels}" if row.labels else "-"
 
 
-def _localisation(m: dict) -> str:
-    if m.get("mean_iou") is not None:
-        return f"{m.get('matching', 'mask')} IoU {m['mean_iou']:.4f}"
-    return f"{m['divide_pixel_error']['mean']:.2f} px" if "divide_pixel_error" in m else "-"
+def _localisation(m: Evaluation) -> str:
+    if m.mean_iou is not None:
+        return f"{m.matching} IoU {m.mean_iou:.4f}"
+    return f"{m.divide_pixel_error.mean:.2f} px" if m.divide_pixel_error else "-"
+
+
+def _error(stats: ErrorStats | None, unit: str, digits: int) -> str:
+    return f"{stats.median:.{digits}f} / {stats.p90:.{digits}f} {unit}" if stats else "-"
 
 
 #: Recall in each pole-width bin, one row per bin.
 _WIDTH_ROWS = {f"  poles {name} wide": (lambda m, i=i: _width_recall(m, i)) for i, name in enumerate(width_bin_names())}
-#: Rows of the comparison table: label and how to show it from metrics.json.
+#: Rows of the comparison table: label and how to show it from an evaluation.
 TABLE_ROWS = {
-    "images": lambda m: str(m["images"]),
-    "matched to labels by": lambda m: {"point": "band-dividing point"}.get(m.get("matching", "mask"),
-                                                                          f"{m.get('matching', 'mask')} IoU >= 0.5"),
-    "threshold (the counts')": lambda m: "any" if m["model"] == COLOUR_FILTER else f"{m['conf']:.2f}",
-    "TP / FP / FN / TN": lambda m: f"{m['tp']} / {m['fp']} / {m['fn']} / {m['tn']}",
-    "FP: class swaps / duplicates": lambda m: f"{m['class_swaps']} / {m['duplicates']}",
-    "precision": lambda m: f"{100 * m['precision']:.1f} %",
-    "recall": lambda m: f"{100 * m['recall']:.1f} %",
-    "F1": lambda m: f"{m['f1']:.3f}",
+    "images": lambda m: str(m.images),
+    "matched to labels by": lambda m: {"point": "band-dividing point"}.get(m.matching, f"{m.matching} IoU >= 0.5"),
+    "threshold (the counts')": lambda m: "any" if m.model == COLOUR_FILTER else f"{m.conf:.2f}",
+    "TP / FP / FN / TN": lambda m: f"{m.counts.tp} / {m.counts.fp} / {m.counts.fn} / {m.counts.tn}",
+    "FP: class swaps / duplicates": lambda m: f"{m.class_swaps} / {m.duplicates}",
+    "precision": lambda m: f"{100 * m.precision:.1f} %",
+    "recall": lambda m: f"{100 * m.recall:.1f} %",
+    "F1": lambda m: f"{m.f1:.3f}",
     **_WIDTH_ROWS,
     "localisation": _localisation,
-    "mAP50 / mAP50-95": lambda m: f"{m['map50']:.3f} / {m['map50_95']:.3f}" if "map50" in m else "-",
-    "range error median / p90": lambda m: (f"{m['range_error']['median']:.3f} / {m['range_error']['p90']:.3f} m"
-                                           if "range_error" in m else "-"),
-    "bearing error median / p90": lambda m: (f"{m['bearing_error']['median']:.2f} / {m['bearing_error']['p90']:.2f} deg"
-                                             if "bearing_error" in m else "-"),
+    "mAP50 / mAP50-95": lambda m: f"{m.map.map50:.3f} / {m.map.map50_95:.3f}" if m.map else "-",
+    "range error median / p90": lambda m: _error(m.range_error, "m", 3),
+    "bearing error median / p90": lambda m: _error(m.bearing_error, "deg", 2),
     "best-F1 threshold (F1)": lambda m: _best_f1(m),
 }
 
 
-def _best_f1(m: dict) -> str:
-    threshold = best_threshold(m["sweep"])
-    return f"{'any' if threshold is None else f'{threshold:.2f}'} ({m['best_f1']:.3f})"
+def _best_f1(m: Evaluation) -> str:
+    threshold = best_threshold(list(m.sweep))
+    return f"{'any' if threshold is None else f'{threshold:.2f}'} ({m.best_f1:.3f})"
 
 
-def print_metrics(rows: list[dict]) -> None:
+def print_metrics(rows: list[Evaluation]) -> None:
     """Side-by-side table of several evaluations, like the thesis's table 4.2, titled with the split it scored."""
     from detector.console import make_console
     from rich.table import Table
 
-    split = rows[0]["split"] if rows else "test"
+    split = rows[0].split if rows else "test"
     title = ("held-out frames" if split != "train" else "TRAINING frames (not held out: a model scores higher on "
              "frames it learnt)") + f" of the {split} split: TP = same class and overlap as each column says"
     table = Table(title=title)
     table.add_column("")
     for m in rows:
-        table.add_column(m["model"], justify="right")
+        table.add_column(m.model, justify="right")
     for label, cell in TABLE_ROWS.items():
         table.add_row(label, *(cell(m) for m in rows))
     if len(rows) > 1:
@@ -215,6 +208,6 @@ def print_metrics(rows: list[dict]) -> None:
     make_console().print(table)
 
 
-def _versus(first: dict, other: dict) -> str:
-    change = f1_difference(first["per_image"], other["per_image"])
+def _versus(first: Evaluation, other: Evaluation) -> str:
+    change = f1_difference(first.per_image, other.per_image)
     return f"{change.difference:+.3f} ({change.low:+.3f} to {change.high:+.3f})"

@@ -5,13 +5,41 @@ better frame by frame: a one-sided sign test over the frames where the two diffe
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from scipy.stats import binomtest
 
 from detector.evaluation.predictors import Predictor
+from detector.evaluation.results import Counts, FrameCounts
 from detector.evaluation.run import evaluate
 from detector.finetune.recipe import BLEND_SHARES, DEFAULT_BLEND_SHARE, SIGN_TEST_LEVEL
+from detector.records import JsonRecord
+
+
+@dataclass(frozen=True)
+class BlendScore(JsonRecord):
+    """One share of the fine-tune on the valid split, counted as ``poles evaluate`` counts, and how it fares frame by
+    frame against the default share."""
+
+    share: float
+    counts: Counts
+    precision: float
+    recall: float
+    f1: float
+    #: False positives plus missed poles, by image name.
+    frame_errors: dict[str, int]
+    frames_better: int = 0
+    frames_worse: int = 0
+
+
+@dataclass(frozen=True)
+class BlendChoice(JsonRecord):
+    """Every share's score, the share chosen and its checkpoint."""
+
+    shares: tuple[BlendScore, ...]
+    chosen: float
+    weights: Path
 
 
 def blend_path(folder: Path, share: float) -> Path:
@@ -19,9 +47,9 @@ def blend_path(folder: Path, share: float) -> Path:
     return Path(folder) / f"blend-{round(100 * share):03d}.pt"
 
 
-def frame_errors(per_image: list[dict]) -> dict[str, int]:
+def frame_errors(per_image: tuple[FrameCounts, ...]) -> dict[str, int]:
     """Each frame's errors, false positives plus missed poles, by image name."""
-    return {row["image"]: row["fp"] + row["fn"] for row in per_image}
+    return {row.image: row.counts.fp + row.counts.fn for row in per_image}
 
 
 def frames_against(errors: dict[str, int], default_errors: dict[str, int]) -> tuple[int, int]:
@@ -38,19 +66,19 @@ def beats_default(better: int, worse: int) -> bool:
     return better > worse and binomtest(better, better + worse, 0.5, alternative="greater").pvalue <= SIGN_TEST_LEVEL
 
 
-def pick_share(scores: list[dict]) -> float:
-    """The share to ship from each share's valid figures (``share``, ``f1``, ``frames_better``, ``frames_worse``
-    against the default): among the shares that beat ``DEFAULT_BLEND_SHARE``, the best F1 (a tie to the share
-    nearest it); else the default."""
-    winners = [row for row in scores if beats_default(row["frames_better"], row["frames_worse"])]
+def pick_share(scores: list[BlendScore]) -> float:
+    """The share to ship from each share's valid figures: among the shares that beat ``DEFAULT_BLEND_SHARE`` frame by
+    frame, the best F1 (a tie to the share nearest it); else the default."""
+    winners = [score for score in scores if beats_default(score.frames_better, score.frames_worse)]
     if not winners:
         return DEFAULT_BLEND_SHARE
-    best = max(winners, key=lambda row: (round(row["f1"], 9), -abs(row["share"] - DEFAULT_BLEND_SHARE)))
-    return best["share"]
+    best = max(winners, key=lambda score: (round(score.f1, 9), -abs(score.share - DEFAULT_BLEND_SHARE)))
+    return best.share
 
 
 def choose_blend(shipped: Path, finetuned: Path, data: Path, folder: Path, conf: float,
-                 predictor_of: Callable[[Path], Predictor], blend: Callable[[Path, Path, float, Path], Path]) -> dict:
+                 predictor_of: Callable[[Path], Predictor],
+                 blend: Callable[[Path, Path, float, Path], Path]) -> BlendChoice:
     """Write (``blend(shipped, finetuned, share, out)``) and score (``predictor_of(checkpoint)``) every blend on
     ``data``'s valid split at ``conf``; returns each share's figures and the chosen share (its checkpoint at
     ``blend_path(folder, share)``)."""
@@ -59,11 +87,11 @@ def choose_blend(shipped: Path, finetuned: Path, data: Path, folder: Path, conf:
         weights = blend(shipped, finetuned, share, blend_path(folder, share))
         metrics = evaluate(predictor_of(weights), data, folder / f"valid-{round(100 * share):03d}", "valid",
                            conf, progress=False)
-        scores.append({"share": share, "f1": metrics["f1"], "precision": metrics["precision"],
-                       "recall": metrics["recall"], "tp": metrics["tp"], "fp": metrics["fp"], "fn": metrics["fn"],
-                       "frame_errors": frame_errors(metrics["per_image"])})
-    default = next(row for row in scores if row["share"] == DEFAULT_BLEND_SHARE)
-    for row in scores:
-        row["frames_better"], row["frames_worse"] = frames_against(row["frame_errors"], default["frame_errors"])
+        scores.append(BlendScore(share, metrics.counts, metrics.precision, metrics.recall, metrics.f1,
+                                 frame_errors(metrics.per_image)))
+    default = next(score for score in scores if score.share == DEFAULT_BLEND_SHARE)
+    against = [frames_against(score.frame_errors, default.frame_errors) for score in scores]
+    scores = [replace(score, frames_better=better, frames_worse=worse)
+              for score, (better, worse) in zip(scores, against)]
     chosen = pick_share(scores)
-    return {"shares": scores, "chosen": chosen, "weights": str(blend_path(folder, chosen))}
+    return BlendChoice(tuple(scores), chosen, blend_path(folder, chosen))

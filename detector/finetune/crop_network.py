@@ -18,14 +18,17 @@ from detector.crops.samples import NO_POLE, crops_of_dataset
 from detector.crops.settings import CropTrainSettings
 from detector.crops.train import load_checkpoint, save_checkpoint, train_crop_network
 from detector.evaluation.predictors import RuntimePredictor, Predictor
+from detector.finetune.results import ExportedModel
 from detector.model_files import ROBOT_WEIGHTS, add_metadata, read_info
+from detector.training.summary import TrainingSummary
 from naoslam.shipped import OPERATING_CONF_KEY, resolve_model, robot_path
 
 #: Crops that check an export against PyTorch when none of the team's are at hand.
 CHECK_CROPS = 16
 
 
-def train(data: Path, run: Path, weights: Path, epochs: int, minutes: float, learning_rate: float, seed: int) -> dict:
+def train(data: Path, run: Path, weights: Path, epochs: int, minutes: float, learning_rate: float,
+          seed: int) -> TrainingSummary:
     """Fine-tune the crop network at ``weights`` on ``data``'s train frames into ``run``/poles-robot.pt: the last
     epoch's weights, as for the accurate model (a team's valid split is too small to pick an epoch on)."""
     start = load_checkpoint(weights)
@@ -39,8 +42,8 @@ def train(data: Path, run: Path, weights: Path, epochs: int, minutes: float, lea
     run.mkdir(parents=True, exist_ok=True)
     checkpoint = save_checkpoint(network, run / "poles-robot.pt", history, settings)
     curves = plot_crop_history(history, run / "training_curves.png")
-    return {"weights": str(checkpoint), "epochs": len(history), "train_crops": len(train_crops),
-            "minutes": round(sum(h.seconds for h in history) / 60, 2), "curves": str(curves)}
+    return TrainingSummary("crop network", weights, checkpoint, curves, len(history),
+                           round(sum(h.seconds for h in history) / 60, 2))
 
 
 def blend(shipped: Path, finetuned: Path, share: float, out: Path) -> Path:
@@ -61,7 +64,7 @@ def onnx_of(weights: Path) -> Path:
     return model
 
 
-def export(weights: Path, model: Path) -> dict:
+def export(weights: Path, model: Path) -> ExportedModel:
     """The crop network at ``weights`` as the robot's ONNX file, checked against PyTorch, carrying the shipped robot
     model's threshold and range calibration (its boxes are measured in frame pixels, so the laws hold)."""
     network = load_checkpoint(weights)
@@ -70,7 +73,7 @@ def export(weights: Path, model: Path) -> dict:
     stamp = shipped_metadata()
     difference = export_crop_network(network, model, check, stamp[OPERATING_CONF_KEY])
     add_metadata(model, **{key: value for key, value in stamp.items() if key != "training"})
-    return {"fp32": str(model), "int8": None, "calibrated": "calibration" in stamp, "onnx_difference": difference}
+    return ExportedModel(model, None, "calibration" in stamp, onnx_difference=difference)
 
 
 def shipped_metadata() -> dict:

@@ -3,31 +3,44 @@ run in this project's class order, and given a valid split when it has none (the
 The export itself is only read."""
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 from detector.datasets.intake import open_dataset
-from detector.datasets.io import DatasetWriter
+from detector.datasets.io import DatasetWriter, SplitCounts
 from detector.datasets.model import Sample
 from detector.datasets.split import stratified_assignment
+from detector.records import JsonRecord
 
 #: Share of the train split moved to valid when the export has no valid split (at least one frame).
 VALID_SHARE = 0.2
 
 
-def prepare_export(export: Path, out: Path, renames: dict[str, str] | None, seed: int) -> dict:
-    """Copy ``export`` into ``out`` (replaced), splitting its train frames into train and valid when it has no valid
-    frames; returns frames per split and what was done. Refuses an export without training frames."""
-    dataset = open_dataset(export, renames)
+@dataclass(frozen=True)
+class DatasetIntake(JsonRecord):
+    """The team's annotated export as the fine-tune took it in: where it was read, frames per split, and poles."""
+
+    source: Path
+    frames: SplitCounts
+    #: Whether the valid split was made from train frames (the export had none).
+    valid_made_from_train: bool
+    poles: int
+
+
+def prepare_dataset(annotated: Path, out: Path, renames: dict[str, str] | None, seed: int) -> DatasetIntake:
+    """Copy the ``annotated`` export into ``out`` (replaced), splitting its train frames into train and valid when it
+    has no valid frames; returns frames per split and what was done. Refuses an export without training frames."""
+    dataset = open_dataset(annotated, renames)
     train, valid, test = (dataset.split(name) for name in ("train", "valid", "test"))
     if not train:
         held = ", ".join(f"{name} {len(dataset.split(name))}" for name in ("valid", "test") if dataset.split(name))
-        raise ValueError(f"{export}: no frame in the train split ({held or 'no frames at all'}) - fine-tuning needs "
+        raise ValueError(f"{annotated}: no frame in the train split ({held or 'no frames at all'}) - fine-tuning needs "
                          "frames to train on: re-export with a train split, or run `poles split --data "
-                         f"{export} --out NEW` and fine-tune NEW")
+                         f"{annotated} --out NEW` and fine-tune NEW")
     moved = not valid
     if moved:
         if len(train) < 2:
-            raise ValueError(f"{export}: one train frame and no valid split - annotate at least two frames (one is "
+            raise ValueError(f"{annotated}: one train frame and no valid split - annotate at least two frames (one is "
                              "kept aside to choose the blend on)")
         shares = {"train": 1.0 - VALID_SHARE, "valid": VALID_SHARE, "test": 0.0}
         assignment = stratified_assignment(train, shares, seed)  # two or more frames: valid gets at least one
@@ -36,5 +49,4 @@ def prepare_export(export: Path, out: Path, renames: dict[str, str] | None, seed
         for split, samples in (("train", train), ("valid", valid), ("test", test)):
             for sample in samples:
                 writer.copy_sample(Sample(split, sample.image, sample.label, sample.instances))
-    return {"train": len(train), "valid": len(valid), "test": len(test), "valid_made_from_train": moved,
-            "poles": sum(len(s.instances) for s in train + valid + test), "export": str(export)}
+    return DatasetIntake(annotated, writer.frames, moved, sum(len(s.instances) for s in train + valid + test))

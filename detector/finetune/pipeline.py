@@ -1,9 +1,10 @@
-"""``poles finetune EXPORT --out RUN``: a team's annotated frames to a deployable model, stage by stage, resumable.
+"""``poles finetune EXPORT --out RUN``: a team's annotated export to a deployable model, stage by stage, resumable.
 
-export (check, split) -> paint (measured on the team's poles) -> rehearsal (rendered frames in that paint) ->
-augment (the thesis's operations) -> mix -> train (from the shipped checkpoint, time-capped) -> blend (share chosen
-on the valid split) -> export (FP32 + INT8, the shipped calibration and threshold) -> evaluate (shipped, fine-tune
-and blend on the held-out frames and on fresh rendered sets) -> report.
+dataset (check, split) -> paint (measured on the team's poles) -> augment (the thesis's operations) -> rehearsal
+(rendered frames in that paint) -> mix -> train (from the shipped checkpoint, time-capped) -> blend (share chosen on
+the valid split) -> export (FP32 + INT8, the shipped calibration and threshold) -> evaluate (shipped, fine-tune and
+blend on the held-out frames and on fresh rendered sets) -> report. Each stage hands on a typed result
+(``finetune.results``).
 """
 from __future__ import annotations
 
@@ -12,29 +13,31 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from augment.run import augment_dataset
+from augment.run import AugmentSummary, augment_dataset
 from detector.atomic import write_json
 from detector.console import make_console
 from detector.datasets.intake import open_dataset
-from detector.datasets.io import DatasetWriter, load_dataset
+from detector.datasets.io import DatasetWriter, SplitCounts, load_dataset
 from detector.datasets.model import BAD_INPUT_ERRORS
 from detector.errors import keep_on_interrupt
 from detector.evaluation.paired import REFERENCE
 from detector.evaluation.predictors import Predictor, TorchPredictor
 from detector.finetune import crop_network
-from detector.finetune.blend import choose_blend
-from detector.finetune.intake import prepare_export
-from detector.finetune.judge import RENDERED_SETS, compare_models, render_set
+from detector.finetune.blend import BlendChoice, choose_blend
+from detector.finetune.intake import DatasetIntake, prepare_dataset
+from detector.finetune.judge import RENDERED_SETS, Judgement, compare_models, render_set
 from detector.finetune.recipe import DEFAULT_BLEND_SHARE, SIGN_TEST_LEVEL, FinetuneRecipe
 from detector.finetune.report import write_report
+from detector.finetune.results import ExportedModel, FinetuneResult, FinetuneStages, RehearsalSummary
 from detector.model_files import add_metadata, read_checkpoint, read_info
 from detector.outputs import check_placement
 from detector.stages import StageFailed, StageLedger, file_fingerprint, stage_key
 from detector.synth.backdrops import scan_backdrops
 from detector.synth.generate import SynthJob, generate_dataset
 from detector.synth.scene import SceneConfig
-from detector.synth.team_paint import measure_team_paint
+from detector.synth.team_paint import TeamPaint, measure_team_paint
 from detector.training.soup import blend_checkpoints
+from detector.training.summary import TrainingSummary
 from detector.training.train import TrainSettings, summarise_run, train_model, trained_minutes
 from export.onnx_export import int8_path
 from export.run import ExportJob, run_export
@@ -43,114 +46,115 @@ from naoslam.shipped import OPERATING_CONF_KEY, resolve_model
 console = make_console()
 
 
-def run_finetune(export: Path, out: Path, recipe: FinetuneRecipe, renames: dict[str, str] | None = None) -> dict:
-    """Run every stage into ``out`` (an earlier fine-tune's folder resumes it); returns the results of each stage.
+def run_finetune(annotated: Path, out: Path, recipe: FinetuneRecipe,
+                 renames: dict[str, str] | None = None) -> FinetuneResult:
+    """Run every stage into ``out`` (an earlier fine-tune's folder resumes it); returns every stage's result.
     Raises ``StageFailed`` naming the stage that failed (everything before it stays)."""
-    export, out = Path(export), Path(out)
-    _check_run_folder(out, export)
+    annotated, out = Path(annotated), Path(out)
+    _check_run_folder(out, annotated)
     backdrops = scan_backdrops(Path(recipe.backgrounds)) if recipe.backgrounds else ()
     new_folder = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     ledger = StageLedger(out, announce=lambda text: console.rule(f"[bold]{text}", align="left"))
     keep_on_interrupt(f"the finished stages and the training's last epoch are kept in {out}: run the same command "
                       "again to resume where it stopped, within what is left of --minutes")
-    console.print(f"[bold]poles finetune[/bold] {export} into {out}: the shipped {recipe.model} model, "
+    console.print(f"[bold]poles finetune[/bold] {annotated} into {out}: the shipped {recipe.model} model, "
                   f"{recipe.minutes:g} minutes in all")
     start = time.perf_counter()
     try:
-        results = _stages(ledger, export, out, recipe, renames or {}, backdrops)
+        stages = _stages(ledger, annotated, out, recipe, renames or {}, backdrops)
     except StageFailed:
         if new_folder and not any(record.status == "done" for record in ledger.records.values()):
             shutil.rmtree(out, ignore_errors=True)  # refused before anything was made: leave nothing behind
         raise
-    results["seconds"] = {record.name: round(record.seconds, 1) for record in ledger.timings()}
-    results["wall_seconds_this_call"] = round(time.perf_counter() - start, 1)
-    results["report"] = str(write_report(out / "report.html", results, ledger.timings()))
-    write_json(out / "metrics.json", {key: value for key, value in results.items() if key != "recipe"}
-               | {"recipe": recipe.settings()})
-    return results
+    result = FinetuneResult(recipe, stages,
+                            seconds={record.name: round(record.seconds, 1) for record in ledger.timings()},
+                            wall_seconds_this_call=round(time.perf_counter() - start, 1), report=out / "report.html")
+    write_report(result, ledger.timings())
+    write_json(out / "metrics.json", result.to_json())
+    return result
 
 
-def _check_run_folder(out: Path, export: Path) -> None:
-    """Refuse an ``out`` that overlaps the export (any folder it is read from) or lies inside a dataset, or is not a
-    new, empty or earlier fine-tune's folder."""
+def _check_run_folder(out: Path, annotated: Path) -> None:
+    """Refuse an ``out`` that overlaps the annotated export (any folder it is read from) or lies inside a dataset, or
+    is not a new, empty or earlier fine-tune's folder."""
     try:
-        inputs = open_dataset(export, progress=False).input_folders()
-    except BAD_INPUT_ERRORS:  # the export stage says what is wrong with it
-        inputs = (export,)
-    check_placement(out, (export, *inputs))
+        inputs = open_dataset(annotated, progress=False).input_folders()
+    except BAD_INPUT_ERRORS:  # the dataset stage says what is wrong with it
+        inputs = (annotated,)
+    check_placement(out, (annotated, *inputs))
     StageLedger.check_folder(out, "fine-tune")
 
 
-def _export_fingerprint(export: Path) -> str:
-    """Names, sizes and times of every file in the export: a changed export reruns every stage."""
-    files = sorted(p for p in export.rglob("*") if p.is_file())
-    return stage_key(files=[(str(p.relative_to(export)), p.stat().st_size, p.stat().st_mtime_ns) for p in files])
+def _dataset_fingerprint(annotated: Path) -> str:
+    """Names, sizes and times of every file in the annotated export: a changed one reruns every stage."""
+    files = sorted(p for p in annotated.rglob("*") if p.is_file())
+    return stage_key(files=[(str(p.relative_to(annotated)), p.stat().st_size, p.stat().st_mtime_ns) for p in files])
 
 
-def _stages(ledger: StageLedger, export: Path, out: Path, recipe: FinetuneRecipe, renames: dict[str, str],
-            backdrops: tuple[Path, ...]) -> dict:
-    data, augmented, rehearsal, mixed = (out / name for name in ("export", "augmented", "rehearsal", "mixed"))
-    results: dict = {"recipe": recipe.settings()}
-    key = stage_key(export=_export_fingerprint(export), renames=renames, seed=recipe.seed)
-    results["export"] = ledger.run("export", key, [data / "data.yaml"],
-                                   lambda: prepare_export(export, data, renames, recipe.seed))
-    paint_key = stage_key(export=key)
-    results["paint"] = ledger.run("paint", paint_key, [out / "paint.json"], lambda: _measure_paint(data, out))
-    augment_key = stage_key(export=key, copies=recipe.copies)
-    results["augment"] = ledger.run("augment", augment_key, [augmented / "data.yaml"], lambda: augment_dataset(
-        data, augmented, copies=recipe.copies, seed=recipe.seed, preview=True, force=True))
-    frames = recipe.rehearsal_frames(results["augment"]["train_images_out"])
+def _stages(ledger: StageLedger, annotated: Path, out: Path, recipe: FinetuneRecipe, renames: dict[str, str],
+            backdrops: tuple[Path, ...]) -> FinetuneStages:
+    data, augmented, rehearsal, mixed = (out / name for name in ("dataset", "augmented", "rehearsal", "mixed"))
+    key = stage_key(dataset=_dataset_fingerprint(annotated), renames=renames, seed=recipe.seed)
+    intake = ledger.run("dataset", key, [data / "data.yaml"],
+                        lambda: prepare_dataset(annotated, data, renames, recipe.seed), DatasetIntake)
+    paint_key = stage_key(dataset=key)
+    paint = ledger.run("paint", paint_key, [out / "paint.json"], lambda: _measure_paint(data, out), TeamPaint)
+    augment_key = stage_key(dataset=key, copies=recipe.copies)
+    augment = ledger.run("augment", augment_key, [augmented / "data.yaml"], lambda: augment_dataset(
+        data, augmented, copies=recipe.copies, seed=recipe.seed, preview=True, force=True), AugmentSummary)
+    frames = recipe.rehearsal_frames(augment.train_images_out)
     rehearsal_key = stage_key(paint=paint_key, frames=frames, far=recipe.far_share, own=recipe.own_paint_share,
                               backdrops=[str(path) for path in backdrops], backdrop_share=recipe.backdrop_share)
-    results["rehearsal"] = ledger.run("rehearsal", rehearsal_key, [rehearsal / "data.yaml"] if frames else [],
-                                      lambda: _render_rehearsal(rehearsal, results["paint"], frames, recipe, backdrops))
+    rendered = ledger.run("rehearsal", rehearsal_key, [rehearsal / "data.yaml"] if frames else [],
+                          lambda: _render_rehearsal(rehearsal, paint, frames, recipe, backdrops), RehearsalSummary)
     mix_key = stage_key(augment=augment_key, rehearsal=rehearsal_key)
-    results["mix"] = ledger.run("mix", mix_key, [mixed / "data.yaml"],
-                                lambda: _mix(augmented, rehearsal if frames else None, mixed))
+    mix = ledger.run("mix", mix_key, [mixed / "data.yaml"],
+                     lambda: _mix(augmented, rehearsal if frames else None, mixed), SplitCounts)
     training = {k: v for k, v in recipe.settings().items() if k != "evaluation_frames"}
     train_key = stage_key(mix=mix_key, recipe=training, start=file_fingerprint(recipe.start.weights))
     spent = sum(record.seconds for record in ledger.timings()) / 60
     run = out / "train"
     trained = run / ("poles-robot.pt" if recipe.start.network == "crops" else "weights/last.pt")
-    results["train"] = ledger.run("train", train_key, [trained], lambda: _train(train_key, mixed, run, recipe, spent))
+    train = ledger.run("train", train_key, [trained], lambda: _train(train_key, mixed, run, recipe, spent),
+                       TrainingSummary)
     conf = float(_starting_metadata(recipe)[OPERATING_CONF_KEY])
     blend_key = stage_key(train=train_key, conf=conf, default_share=DEFAULT_BLEND_SHARE, level=SIGN_TEST_LEVEL)
-    results["blend"] = ledger.run("blend", blend_key, [out / "blend"], lambda: _blend(
-        trained, data, out / "blend", conf, recipe))
+    blend = ledger.run("blend", blend_key, [out / "blend"], lambda: _blend(trained, data, out / "blend", conf, recipe),
+                       BlendChoice)
     export_key = stage_key(blend=blend_key)
     model = out / "models" / recipe.start.finetuned_name
-    results["export model"] = ledger.run("export model", export_key, [model], lambda: _export_model(
-        Path(results["blend"]["weights"]), model, data, mixed, recipe))
+    exported = ledger.run("export", export_key, [model],
+                          lambda: _export_model(blend.weights, model, data, mixed, recipe), ExportedModel)
     evaluate_key = stage_key(export=export_key, frames=recipe.evaluation_frames, sets=RENDERED_SETS)
-    results["evaluate"] = ledger.run("evaluate", evaluate_key, [out / "evaluation" / "summary.json"], lambda: _evaluate(
-        out / "evaluation", data, trained, results["blend"], conf, recipe))
-    return results
+    judgement = ledger.run("evaluate", evaluate_key, [out / "evaluation" / "summary.json"], lambda: _evaluate(
+        out / "evaluation", data, trained, blend, conf, recipe), Judgement)
+    return FinetuneStages(intake, paint, augment, rendered, mix, train, blend, exported, judgement)
 
 
-def _measure_paint(data: Path, out: Path) -> dict:
-    paint = measure_team_paint(data).as_json()
-    write_json(out / "paint.json", paint)
+def _measure_paint(data: Path, out: Path) -> TeamPaint:
+    paint = measure_team_paint(data)
+    write_json(out / "paint.json", paint.to_json())
     return paint
 
 
-def _render_rehearsal(folder: Path, paint: dict, frames: int, recipe: FinetuneRecipe,
-                      backdrops: tuple[Path, ...]) -> dict:
+def _render_rehearsal(folder: Path, paint: TeamPaint, frames: int, recipe: FinetuneRecipe,
+                      backdrops: tuple[Path, ...]) -> RehearsalSummary:
     """Render the rehearsal frames, ``own_paint_share`` of them in the team's paint and ``backdrop_share`` over
     ``backdrops`` when there are any; none (and the folder removed) when the recipe mixes none."""
     if not frames:
         shutil.rmtree(folder, ignore_errors=True)
-        return {"frames": 0}
-    team_paint = tuple(sorted((letter, tuple(rgb)) for letter, rgb in paint["letters"].items()))
-    config = SceneConfig(team_paint=team_paint, team_paint_share=recipe.own_paint_share, far_share=recipe.far_share)
+        return RehearsalSummary(0)
+    config = SceneConfig(team_paint=paint.scene_paint(), team_paint_share=recipe.own_paint_share,
+                         far_share=recipe.far_share)
     job = SynthJob(frames, recipe.seed + 7001, config=config, backgrounds=backdrops,
                    backdrop_share=recipe.backdrop_share)
     protect = (Path(recipe.backgrounds),) if recipe.backgrounds else ()
     generate_dataset(folder, job, preview=True, force=True, split="train", protect=protect)
-    return {"frames": frames, "backdrops": len(backdrops), "preview": str(folder / "preview.png")}
+    return RehearsalSummary(frames, len(backdrops), folder / "preview.png")
 
 
-def _mix(augmented: Path, rehearsal: Path | None, out: Path) -> dict:
+def _mix(augmented: Path, rehearsal: Path | None, out: Path) -> SplitCounts:
     """The training set: the augmented export's train frames and every rehearsal frame; the export's valid frames
     (never its test frames) to validate on. Images are linked, not copied."""
     team = load_dataset(augmented)
@@ -160,14 +164,14 @@ def _mix(augmented: Path, rehearsal: Path | None, out: Path) -> dict:
             writer.add(sample.split, sample.image.name, sample.image, sample.instances, link=True)
         for sample in rendered:
             writer.add("train", f"rehearsal_{sample.image.name}", sample.image, sample.instances, link=True)
-    return dict(writer.counts)
+    return writer.frames
 
 
 #: A resumed training that had spent its minutes still trains this long: its last epoch ends the schedule.
 MIN_RESUMED_MINUTES = 0.1
 
 
-def _train(key: str, data: Path, run: Path, recipe: FinetuneRecipe, spent_minutes: float) -> dict:
+def _train(key: str, data: Path, run: Path, recipe: FinetuneRecipe, spent_minutes: float) -> TrainingSummary:
     """Fine-tune the shipped checkpoint for the minutes left; an interrupted run of the same stage (its key is kept
     beside the run folder) resumes from its last epoch with what is left of its minutes, a finished one is kept. The
     final weights are the fine-tune: a valid split of a few frames cannot choose an epoch. The robot's crop network
@@ -198,8 +202,7 @@ def _train(key: str, data: Path, run: Path, recipe: FinetuneRecipe, spent_minute
                              max_epochs=recipe.epoch_cap, hyperparameters=recipe.hyperparameters())
     if not finished:
         train_model(data, run, settings, weights=recipe.start.weights, resume=same_run)
-    return {**summarise_run(run), "minutes": round(minutes, 2), "curves": str(run / "training_curves.png"),
-            "weights": str(run / "weights" / "last.pt")}
+    return summarise_run(run, recipe.start.architecture, recipe.start.weights, round(minutes, 2), kept="last")
 
 
 def _starting_metadata(recipe: FinetuneRecipe) -> dict:
@@ -215,7 +218,7 @@ def judging_predictor(recipe: FinetuneRecipe) -> Callable[[Path], Predictor]:
     return lambda weights: TorchPredictor(weights, recipe.training_size)
 
 
-def _blend(finetuned: Path, data: Path, folder: Path, conf: float, recipe: FinetuneRecipe) -> dict:
+def _blend(finetuned: Path, data: Path, folder: Path, conf: float, recipe: FinetuneRecipe) -> BlendChoice:
     if recipe.start.network == "crops":
         blend = crop_network.blend
     else:
@@ -227,7 +230,7 @@ def _blend(finetuned: Path, data: Path, folder: Path, conf: float, recipe: Finet
     return choose_blend(recipe.start.weights, finetuned, data, folder, conf, judging_predictor(recipe), blend)
 
 
-def _export_model(weights: Path, model: Path, data: Path, mixed: Path, recipe: FinetuneRecipe) -> dict:
+def _export_model(weights: Path, model: Path, data: Path, mixed: Path, recipe: FinetuneRecipe) -> ExportedModel:
     """ONNX of the chosen blend, exported as its starting model is (FP32 and INT8, or FP32 with a dynamic input),
     verified against PyTorch on the export's frames, carrying the starting model's operating threshold and its range
     calibration (where the input width is the one that calibration was measured at; at another width the masks read
@@ -240,20 +243,19 @@ def _export_model(weights: Path, model: Path, data: Path, mixed: Path, recipe: F
     written = [model, int8_path(model)] if start.int8 else [model]
     stamp = _starting_metadata(recipe)
     measured_at = stamp["calibration"].get("input_width")
-    calibrated = measured_at == report["input_hw"][1]
+    calibrated = measured_at == report.width
     if not calibrated:
         stamp = {key: value for key, value in stamp.items() if key != "calibration"}
         console.print(f"[yellow]no range calibration in {model}: the shipped one was measured at "
                       f"{measured_at} px input, this model runs at "
-                      f"{report['input_hw'][1]} - run `poles calibrate --model {model} --embed {model}`")
+                      f"{report.width} - run `poles calibrate --model {model} --embed {model}`")
     for path in written:
         add_metadata(path, **stamp)
-    return {"fp32": str(model), "int8": str(int8_path(model)) if start.int8 else None, "calibrated": calibrated,
-            **{key: report.get(key) for key in ("fp32_vs_pytorch", "int8_vs_fp32", "int8_problems", "latency_ms",
-                                                "recommended")}}
+    return ExportedModel(model, int8_path(model) if start.int8 else None, calibrated, check=report)
 
 
-def _evaluate(folder: Path, data: Path, finetuned: Path, blend: dict, conf: float, recipe: FinetuneRecipe) -> dict:
+def _evaluate(folder: Path, data: Path, finetuned: Path, blend: BlendChoice, conf: float,
+              recipe: FinetuneRecipe) -> Judgement:
     """Shipped model, fine-tune and chosen blend on the held-out frames (test split, else valid) and on fresh
     rendered sets, at the shipped threshold."""
     shutil.rmtree(folder, ignore_errors=True)
@@ -264,6 +266,5 @@ def _evaluate(folder: Path, data: Path, finetuned: Path, blend: dict, conf: floa
                                  kind["far_share"], kind["seed"]),
                       "test")
     models = {REFERENCE: recipe.start.weights, "fine-tune": finetuned,
-              f"blend {blend['chosen']:g}": Path(blend["weights"])}
-    return {"held_out": held_out, "conf": conf,
-            "rows": compare_models(models, sets, folder, conf, judging_predictor(recipe))}
+              f"blend {blend.chosen:g}": blend.weights}
+    return Judgement(held_out, conf, tuple(compare_models(models, sets, folder, conf, judging_predictor(recipe))))

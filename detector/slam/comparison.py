@@ -1,7 +1,12 @@
 """Every back end on the same sequences: the comparison table of ``poles slam --compare`` and the demo."""
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+
+from detector.records import JsonRecord
+from detector.slam.figures import RunFigures
 
 from naoslam.ekf_slam import SlamConfig
 from naoslam.metrics import chi2_band
@@ -32,42 +37,56 @@ BACKENDS = {
 REFERENCE_ROW = "GTSAM smoother, oracle association (reference)"
 
 
+@dataclass(frozen=True)
+class BackendRow(JsonRecord):
+    """One back end over the seeds: mean errors (m), missing and phantom landmarks in all, the median of the runs'
+    mean NEES with its 95 % band, and the median mean NIS."""
+
+    backend: str
+    seeds: int
+    robot_error: float | None
+    landmark_error: float | None
+    odometry_error: float | None
+    missing: int
+    phantoms: int
+    nees: float | None
+    nees_band95: tuple[float, float] | None
+    nis: float | None
+
+
 def compare_backends(make_sequence, seeds: list[int], backends: dict[str, SlamConfig | LocalisationConfig] = BACKENDS,
-                     reference=None) -> list[dict]:
+                     reference=None) -> list[BackendRow]:
     """Every back end on the same sequences (one per seed): mean errors, missing and phantom landmarks, NEES
     against its 95 % band over the seeds, NIS. ``reference(sequence) -> SlamResult`` adds a last row."""
-    runs: dict[str, list[dict]] = {name: [] for name in backends}
+    runs: dict[str, list[RunFigures]] = {name: [] for name in backends}
     if reference is not None:
         runs[REFERENCE_ROW] = []
     for seed in seeds:
         sequence = make_sequence(seed)
         for name, config in backends.items():
             if isinstance(config, SlamConfig) or localisable(sequence):
-                runs[name].append(run_slam(sequence, config).metrics())
+                runs[name].append(RunFigures.of(run_slam(sequence, config)))
         if reference is not None:
-            runs[REFERENCE_ROW].append(reference(sequence).metrics())
-    return [_summary(name, metrics) for name, metrics in runs.items() if metrics]
+            runs[REFERENCE_ROW].append(RunFigures.of(reference(sequence)))
+    return [_summary(name, figures) for name, figures in runs.items() if figures]
 
 
-def _summary(name: str, runs: list[dict]) -> dict:
-    row: dict = {"backend": name, "seeds": len(runs)}
-    for key in ("robot_error", "landmark_error", "odometry_error"):
-        values = [r[key]["mean"] for r in runs if key in r]
-        if values:
-            row[key] = float(np.mean(values))
-    row["missing"] = sum(len(r.get("landmarks_missing", [])) for r in runs)
-    row["phantoms"] = sum(len(r.get("phantoms", {})) for r in runs)
-    nees = [r["nees"]["mean"] for r in runs if "nees" in r]
-    if nees:
-        row["nees"] = float(np.median(nees))
-        row["nees_band95"] = chi2_band(3, len(nees))
-    nis = [r["nis"]["mean"] for r in runs if "nis" in r]
-    if nis:
-        row["nis"] = float(np.median(nis))
-    return row
+def _known(values: list[float | None]) -> list[float]:
+    return [value for value in values if value is not None]
 
 
-def print_comparison(rows: list[dict], title: str) -> None:
+def _summary(name: str, runs: list[RunFigures]) -> BackendRow:
+    def mean(values: list[float | None]) -> float | None:
+        return float(np.mean(_known(values))) if _known(values) else None
+
+    nees, nis = _known([r.nees for r in runs]), _known([r.nis for r in runs])
+    return BackendRow(name, len(runs), mean([r.robot_error for r in runs]), mean([r.landmark_error for r in runs]),
+                      mean([r.odometry_error for r in runs]), sum(r.missing for r in runs),
+                      sum(r.phantoms for r in runs), float(np.median(nees)) if nees else None,
+                      chi2_band(3, len(nees)) if nees else None, float(np.median(nis)) if nis else None)
+
+
+def print_comparison(rows: list[BackendRow], title: str) -> None:
     """Print one table row per back end: errors against the truth, missing and phantom landmarks, consistency."""
     from detector.console import make_console
     from rich.table import Table
@@ -77,11 +96,9 @@ def print_comparison(rows: list[dict], title: str) -> None:
                    "NEES median (3 dof)", "NEES 95 % band", "NIS median (2 dof)"):
         table.add_column(column, justify="right")
     for row in rows:
-        band = row.get("nees_band95")
-        table.add_row(row["backend"], *(f"{row[k]:.3f}" if k in row else "-"
-                                        for k in ("landmark_error", "robot_error", "odometry_error")),
-                      str(row["missing"]), str(row["phantoms"]),
-                      f"{row['nees']:.1f}" if "nees" in row else "-",
-                      f"{band[0]:.2f}-{band[1]:.2f}" if band else "-",
-                      f"{row['nis']:.2f}" if "nis" in row else "-")
+        band = row.nees_band95
+        table.add_row(row.backend, *(f"{value:.3f}" if value is not None else "-"
+                                     for value in (row.landmark_error, row.robot_error, row.odometry_error)),
+                      str(row.missing), str(row.phantoms), f"{row.nees:.1f}" if row.nees is not None else "-",
+                      f"{band[0]:.2f}-{band[1]:.2f}" if band else "-", f"{row.nis:.2f}" if row.nis is not None else "-")
     make_console().print(table)

@@ -8,11 +8,13 @@ from pathlib import Path
 import numpy as np
 
 from detector.atomic import atomic_path, write_json
+from detector.slam.figures import RunFigures
 from naoslam.runner import Sequence, SlamResult
 
 
-def write_outputs(result: SlamResult, sequence: Sequence, out: Path) -> dict:
-    """metrics.json, path.csv, map.json (the map estimated, or a localiser's given map) and the two plots in ``out``."""
+def write_outputs(result: SlamResult, sequence: Sequence, out: Path) -> RunFigures:
+    """metrics.json, path.csv, map.json (the map estimated, or a localiser's given map) and the two plots in ``out``;
+    returns the run's headline figures."""
     out.mkdir(parents=True, exist_ok=True)
     metrics = {"sequence": sequence.name, **result.metrics()}
     write_json(out / "metrics.json", metrics)
@@ -28,7 +30,7 @@ def write_outputs(result: SlamResult, sequence: Sequence, out: Path) -> dict:
     plot_map(result, out / "map.png", sequence.name)
     if result.true_poses is not None:
         plot_errors(result, out / "errors.png")
-    return metrics
+    return RunFigures.of(result)
 
 
 #: A map's title wraps at this many characters, so the back end's long label stays inside the 7-inch figure.

@@ -21,6 +21,7 @@ import numpy as np
 from detector.datasets.intake import open_dataset
 from detector.datasets.io import decode_frame
 from detector.datasets.model import Instance
+from detector.records import JsonRecord
 from detector.synth.objects import BAND_RGB, RGB, WHITE
 from naoslam.landmarks import PoleGeometry
 
@@ -32,8 +33,8 @@ HALF_WIDTH_SHARE = 0.25
 MIN_PART_PIXELS = 6
 
 
-@dataclass
-class TeamPaint:
+@dataclass(frozen=True)
+class TeamPaint(JsonRecord):
     """Measured paint: RGB 0..1 per band letter (``measured`` says which letters any pole showed; the others keep the
     renderer's nominal paint), per class and band position, and how many poles were measured and skipped."""
 
@@ -49,14 +50,6 @@ class TeamPaint:
 
     def hue_degrees(self, letter: str) -> float:
         return colorsys.rgb_to_hsv(*self.letters[letter])[0] * 360.0
-
-    def as_json(self) -> dict:
-        def rounded(rgb: RGB) -> list[float]:
-            return [round(float(c), 4) for c in rgb]
-
-        return {"letters": {k: rounded(v) for k, v in self.letters.items()}, "measured_bands": self.measured,
-                "classes": {c: {part: rounded(v) for part, v in parts.items()} for c, parts in self.classes.items()},
-                "poles_measured": self.poles, "poles_skipped": self.skipped}
 
 
 def measure_team_paint(export: str | Path, splits: tuple[str, ...] = ("train", "valid"),
@@ -84,11 +77,16 @@ def measure_team_paint(export: str | Path, splits: tuple[str, ...] = ("train", "
     if not poles:
         raise ValueError(f"{export}: no annotated pole is large enough to measure its paint (each band needs "
                          f"{MIN_PART_PIXELS} pixels) - annotate nearer poles, or leave out --paint-from")
-    letters = {letter: tuple(np.median(values, axis=0)) if values else BAND_RGB[letter]
-               for letter, values in bands.items()}
-    classes = {cls: {part: tuple(np.median(values, axis=0)) for part, values in parts.items()}
+    letters = {letter: _median_rgb(values) if values else BAND_RGB[letter] for letter, values in bands.items()}
+    classes = {cls: {part: _median_rgb(values) for part, values in parts.items()}
                for cls, parts in sorted(per_class.items())}
     return TeamPaint(letters, {letter: len(values) for letter, values in bands.items()}, classes, poles, skipped)
+
+
+def _median_rgb(colours: list[np.ndarray]) -> RGB:
+    """The median colour, to four decimals (as the renderer records the paint it was given)."""
+    red, green, blue = (round(float(c), 4) for c in np.median(colours, axis=0))
+    return red, green, blue
 
 
 def pole_paint(image: np.ndarray, instance: Instance, geometry: PoleGeometry = PoleGeometry()) -> dict[str, RGB] | None:

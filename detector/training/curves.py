@@ -5,6 +5,7 @@ import csv
 from pathlib import Path
 
 from detector.figures import plt, save_figure
+from detector.training.summary import BestEpoch
 
 LOSSES = ("box_loss", "seg_loss", "cls_loss", "dfl_loss")
 METRICS = ("mAP50(B)", "mAP50-95(B)", "mAP50(M)", "mAP50-95(M)")
@@ -27,20 +28,19 @@ def fitness(columns: dict[str, list[float]], i: int) -> float:
     return sum(0.1 * columns[f"metrics/mAP50({k})"][i] + 0.9 * columns[f"metrics/mAP50-95({k})"][i] for k in "BM")
 
 
-def best_epoch(csv_path: Path) -> dict[str, float]:
+def best_epoch(csv_path: Path) -> BestEpoch:
     """The epoch with the highest validation fitness (the one Ultralytics keeps as best.pt) and its metrics."""
     columns = read_results(csv_path)
     i = max(range(len(columns["epoch"])), key=lambda j: fitness(columns, j))
-    summary = {"best_epoch": int(columns["epoch"][i]), "epochs": len(columns["epoch"])}
-    summary.update({m: columns[f"metrics/{m}"][i] for m in METRICS})
-    summary.update({f"val/{loss}": columns[f"val/{loss}"][i] for loss in LOSSES})
-    return summary
+    box_map50, box_map50_95, mask_map50, mask_map50_95 = (columns[f"metrics/{m}"][i] for m in METRICS)
+    return BestEpoch(int(columns["epoch"][i]), len(columns["epoch"]), box_map50, box_map50_95, mask_map50,
+                     mask_map50_95, {loss: columns[f"val/{loss}"][i] for loss in LOSSES})
 
 
 def plot_training_curves(csv_path: Path, png: Path) -> Path:
     """Train and validation losses per epoch, and validation mAP, with the best epoch marked."""
     columns = read_results(csv_path)
-    best = best_epoch(csv_path)["best_epoch"]
+    best = best_epoch(csv_path).epoch
     epochs = columns["epoch"]
     fig, axes = plt.subplots(1, len(LOSSES) + 1, figsize=(4 * (len(LOSSES) + 1), 3.4), constrained_layout=True)
     for ax, loss in zip(axes, LOSSES):

@@ -30,6 +30,7 @@ from detector.model_files import read_checkpoint
 from detector.training.curves import best_epoch, plot_training_curves, read_results
 from detector.training.devices import check_device
 from detector.training.distillation import check_teacher, shared_stride_distillation
+from detector.training.summary import TrainingSummary
 from naoslam.cores import usable_cores
 
 #: Ultralytics' segmentation models that can be built from their YAML without a download.
@@ -298,6 +299,11 @@ def recalibrate_batchnorm(weights: Path, images: list[Path], imgsz: tuple[int, i
     return Path(out)
 
 
-def summarise_run(run: Path) -> dict:
-    """Best epoch (chosen on the validation set) and its metrics, from the run's results.csv."""
-    return best_epoch(Path(run) / "results.csv")
+def summarise_run(run: Path, model: str, started_from: Path | None = None, minutes: float | None = None,
+                  kept: str = "best") -> TrainingSummary:
+    """The run's summary from its results.csv: its best validation epoch, and the weights it hands on (``kept``:
+    ``best`` or ``last``)."""
+    run = Path(run)
+    best = best_epoch(run / "results.csv")
+    return TrainingSummary(model, started_from, run / "weights" / f"{kept}.pt", run / "training_curves.png",
+                           best.epochs, minutes, best)

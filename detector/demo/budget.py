@@ -1,0 +1,72 @@
+"""How much work ``poles demo`` does: the budgets it offers and how the fast one fits its training into the whole
+run's time."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from augment.config import THESIS_COPIES
+
+#: What the stages around training took on this project's two-core test machine (Intel Xeon) in the fast budget:
+#: before it (data, check, augment) and after it (export, calibration, evaluation, SLAM, and training's own setup and
+#: final validation beyond its time cap). A machine that took longer before training is taken to be as much slower
+#: after it.
+BEFORE_TRAINING_S = 34.0
+AFTER_TRAINING_S = 150.0
+#: Training gets at least this long, however slow the machine.
+MIN_TRAINING_S = 120.0
+
+
+@dataclass(frozen=True)
+class Budget:
+    """How much work each stage does. ``train_hours`` caps training time (Ultralytics fits the epochs to it);
+    ``whole_minutes``, when given, is the whole run's time: training gets what the other stages leave of it.
+    ``conf`` None picks the confidence threshold that maximises F1 on the validation split (or, when that split
+    holds too few poles to choose on, keeps the threshold the starting model shipped with)."""
+
+    name: str
+    images: int
+    copies: int
+    models: tuple[str, ...]
+    imgsz: int
+    epochs: int
+    train_hours: float | None
+    batch: int
+    export_hw: tuple[int, int]
+    calibration_shots: int
+    walk_seconds: float
+    compare_seeds: int
+    conf: float | None
+    rationale: str = ""
+    whole_minutes: float | None = None
+
+    def training_hours(self, spent_s: float) -> float | None:
+        """The training's time cap after ``spent_s`` seconds of the stages before it: ``train_hours``, shortened so
+        that the whole run stays within ``whole_minutes`` on a machine as much slower than the test machine after
+        training as it was before (at least ``MIN_TRAINING_S``)."""
+        if self.whole_minutes is None:
+            return self.train_hours
+        slowness = max(1.0, spent_s / BEFORE_TRAINING_S)
+        left_s = max(MIN_TRAINING_S, 60 * self.whole_minutes - spent_s - slowness * AFTER_TRAINING_S)
+        return min(left_s / 3600, self.train_hours) if self.train_hours else left_s / 3600
+
+
+BUDGETS = {
+    "fast": Budget("fast", images=300, copies=THESIS_COPIES, models=("yolov8n-seg",), imgsz=640, epochs=100,
+                   train_hours=0.17, whole_minutes=12.0, batch=8, export_hw=(480, 640), calibration_shots=90,
+                   walk_seconds=90.0, compare_seeds=3, conf=None, rationale=(
+                       "About 13 minutes on two cores, 10 of them training. The run fine-tunes the shipped "
+                       "pole-pretrained YOLOv8n (its line trained on 68,000 rendered frames, most over real "
+                       "robot-camera backgrounds) on this dataset at 640 px, the Nao's full frame width, so that far "
+                       "poles are learnt at the pixel size they have on the robot; ten minutes start from a good model "
+                       "instead of from nothing, and the evaluation compares the result with the shipped model as "
+                       "installed (on rendered frames like its own training data they seldom improve it). Exported "
+                       "at 640x480; the shipped model's threshold is kept, since 30 validation frames are too few to "
+                       "choose one on. "
+                       "YOLOv8s/m from scratch need hours to days here (--budget full).")),
+    # The thesis's settings: YOLOv8s and YOLOv8m at 640 px for 200 epochs (days on a laptop CPU).
+    "full": Budget("full", images=1000, copies=THESIS_COPIES, models=("yolov8s-seg", "yolov8m-seg"), imgsz=640,
+                   epochs=200, train_hours=None, batch=8, export_hw=(480, 640), calibration_shots=270,
+                   walk_seconds=90.0, compare_seeds=10, conf=0.85, rationale=(
+                       "The 2024 thesis's settings: YOLOv8s and YOLOv8m at 640 px for 200 epochs, detections used "
+                       "from confidence 0.85. On a two-core CPU this takes days.")),
+}
