@@ -6,12 +6,16 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
+from rich.table import Table
 
 from calibration.fit import MIN_NOISE_SIGHTINGS, WALK_RELATIVE_STD, calibrate
 from calibration.report import CalibrationReport
 from calibration.samples import MEASURE_CONF, SizeSample, as_arrays, measure_samples, measures_law, open_ranged
 from detector.outputs import check_output_file
 from detector.atomic import write_json
+from detector.console import make_console
+from detector.figures import log_log, plt, save_figure
+from detector.model_files import add_metadata, read_info
 from detector.records import JsonRecord
 from naoslam.detector import load_detector
 from naoslam.measurement import RangeCalibration
@@ -49,8 +53,6 @@ def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv:
     for output in (out, plot) if plot else (out,):
         check_output_file(output, force, inputs)
     if embed:
-        from detector.model_files import read_info
-
         for target in embed:
             read_info(target)  # refuse a model that cannot take the calibration before anything is written
     detector = load_detector(model, conf=MEASURE_CONF, input_width=input_width) if model else None
@@ -79,8 +81,6 @@ def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv:
 
 def embed_calibration(model: Path, calibration: RangeCalibration) -> Path:
     """Store the calibration in the ONNX model's naoslam metadata (the weights are untouched)."""
-    from detector.model_files import add_metadata
-
     return add_metadata(model, calibration=calibration.to_dict())
 
 
@@ -88,8 +88,6 @@ def plot_fit(samples: list[SizeSample], calibration: RangeCalibration, png: Path
              walk_samples: list[SizeSample] | None = None) -> Path:
     """Range against width and height (log-log) with the fitted laws and the thesis's, behind them the walk's
     sightings (``--noise-data``) whose spread the filter is told."""
-    from detector.figures import log_log, plt, save_figure
-
     hfov = calibration.hfov_deg if calibration.off_axis_corrected else None
     columns = as_arrays(samples, calibration.reference_width_px, hfov)
     walk = as_arrays(walk_samples, calibration.reference_width_px, hfov) if walk_samples else None
@@ -121,9 +119,6 @@ def plot_fit(samples: list[SizeSample], calibration: RangeCalibration, png: Path
 
 def print_calibration(result: CalibrationResult) -> None:
     """The laws and the per-distance errors as tables."""
-    from detector.console import make_console
-    from rich.table import Table
-
     report, calibration = result.report, result.calibration
     laws = Table(title=f"range laws from {report.samples} poles ({report.source}), "
                        f"pixels at {report.reference_width_px} px width")

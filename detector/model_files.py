@@ -46,7 +46,7 @@ def load_calibration(path: Path) -> RangeCalibration:
 
 def read_checkpoint(path: Path) -> dict:
     """A local Ultralytics checkpoint as a dict (plain torch.load on the CPU: never a download)."""
-    import torch
+    import torch  # deferred, as Ultralytics below: the ONNX side of this module needs neither
 
     if not Path(path).is_file():
         raise FileNotFoundError(f"{path}: no such checkpoint - pass a best.pt or last.pt written by `poles train`")

@@ -35,7 +35,7 @@ def export_onnx(weights: Path, out: Path, input_hw: tuple[int, int] = NAO_INPUT_
     the horizon alone (``LandmarkDetector``'s crop). The network is rewritten for the Nao's instruction set first
     (``export.atom_graph``: the same values from operators that compile and run fast at SSE4.1).
     """
-    from ultralytics import YOLO
+    from ultralytics import YOLO  # deferred: `int8_path` and the names here stay light for every command
 
     from export.atom_graph import rewrite_for_atom
 

@@ -7,7 +7,9 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from rich.table import Table
 
+from detector.console import make_console
 from detector.datasets.intake import open_dataset
 from detector.outputs import check_output_file
 from detector.model_files import read_checkpoint, ultralytics_predict
@@ -110,8 +112,6 @@ def dataset_images(data: Path, splits: tuple[str, ...], limit: int, flag: str) -
 
 def training_dataset(weights: Path) -> Path:
     """The dataset folder a checkpoint was trained on (from its train_args), for when --data is not given."""
-    from detector.model_files import read_checkpoint
-
     data = (read_checkpoint(weights).get("train_args") or {}).get("data")
     if not data or not Path(data).exists():
         raise FileNotFoundError(f"{weights}: the dataset it was trained on ({data}) is not here - pass --data DATA")
@@ -216,9 +216,6 @@ AGREEMENT_ROWS = {"detections (ref / new)": lambda a: f"{a.reference} / {a.candi
 
 def print_report(report: ExportReport) -> None:
     """The agreement and speed figures as a table, one column per comparison."""
-    from detector.console import make_console
-    from rich.table import Table
-
     comparisons = report.comparisons()
     height, width = report.input_hw
     checked_height, checked_width = report.verified_at_hw

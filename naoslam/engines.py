@@ -19,7 +19,7 @@ class OpenVinoForward:
 
     def __init__(self, model: Path | str | object, threads: int | None = None):
         try:
-            import openvino as ov
+            import openvino as ov  # the optional engine: onnxruntime is the runtime's own
         except ImportError:
             raise ValueError("engine 'openvino' needs the openvino package: pip install openvino") from None
         self.core = ov.Core()

@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 import yaml
 
+from detector.datasets.coco import find_coco_files, load_coco
 from detector.datasets.jpeg import truncated_jpeg
 from detector.datasets.labels import format_label_line, parse_label_file, unread_entries
 from detector.datasets.model import IMAGE_SUFFIXES, SPLITS, Dataset, DatasetError, Instance, Problem, Sample
@@ -89,8 +90,6 @@ def load_dataset(path: str | Path, renames: dict[str, str] | None = None) -> Dat
     if yaml_path.is_file():
         return _with_images_required(_load_yolo(yaml_path, renames), yaml_path,
                                      "the layout is train/images, valid/images, test/images beside data.yaml")
-    from detector.datasets.coco import find_coco_files, load_coco
-
     if path.is_dir() and find_coco_files(path):
         return _with_images_required(load_coco(path, renames), path,
                                      "export the dataset with its images (each split's folder beside its JSON)")
@@ -106,8 +105,6 @@ def load_dataset(path: str | Path, renames: dict[str, str] | None = None) -> Dat
 
 def _datasets_one_folder_down(folder: Path) -> list[Path]:
     """The subfolders of ``folder`` that hold a dataset (an unzipped export often sits one folder down)."""
-    from detector.datasets.coco import find_coco_files
-
     return [sub for sub in sorted(folder.iterdir()) if sub.is_dir() and not sub.name.startswith(".")
             and ((sub / "data.yaml").is_file() or find_coco_files(sub))]
 

@@ -174,7 +174,7 @@ def map_scores(images: list[ImageEvaluation], classes: tuple[str, ...]) -> MapSc
     """Ultralytics' mAP50 and mAP50-95 over the images' IoU, mask or box (None for the colour filter's points)."""
     if not images or images[0].matching == "point":
         return None
-    from ultralytics.utils.metrics import ap_per_class
+    from ultralytics.utils.metrics import ap_per_class  # deferred: it loads torch, which counting does not need
 
     tp_rows, conf, pred_cls, target_cls = [], [], [], []
     for image in images:

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from detector.model_files import read_checkpoint, run_checkpoint
+from detector.model_files import read_checkpoint, run_checkpoint, ultralytics_frame
 from naoslam.camera import CameraPose
 from naoslam.detections import Detection
 from naoslam.detector import load_detector
@@ -58,7 +58,7 @@ class TorchPredictor(Predictor):
     """A trained checkpoint run by Ultralytics on PyTorch (full-resolution masks)."""
 
     def __init__(self, path: Path, imgsz: int = 640):
-        from ultralytics import YOLO
+        from ultralytics import YOLO  # deferred: Ultralytics and torch load only when a checkpoint is evaluated
 
         self.model = YOLO(str(path))
         if self.model.task != "segment":
@@ -68,7 +68,6 @@ class TorchPredictor(Predictor):
         self.name = Path(path).name
 
     def __call__(self, frame: np.ndarray, camera_pose: CameraPose | None = None) -> list[Detection]:
-        from detector.model_files import ultralytics_frame
 
         return ultralytics_frame(self.model, frame, self.imgsz, SWEEP_CONF)
 

@@ -7,7 +7,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from detector.console import show_progress
+from rich.table import Table
+
+from detector.console import make_console, show_progress
 from detector.datasets.intake import open_dataset
 from detector.datasets.model import SPLITS
 from detector.datasets.polygons import polygon_to_mask
@@ -191,9 +193,6 @@ def _best_f1(m: Evaluation) -> str:
 
 def print_metrics(rows: list[Evaluation]) -> None:
     """Side-by-side table of several evaluations, like the thesis's table 4.2, titled with the split it scored."""
-    from detector.console import make_console
-    from rich.table import Table
-
     split = rows[0].split if rows else "test"
     title = ("held-out frames" if split != "train" else "TRAINING frames (not held out: a model scores higher on "
              "frames it learnt)") + f" of the {split} split: TP = same class and overlap as each column says"

@@ -42,7 +42,7 @@ class StartingModel:
     @property
     def weights(self) -> Path:
         """The shipped checkpoint a fine-tune starts from and is blended and compared with."""
-        from detector.model_files import ROBOT_WEIGHTS, SHIPPED_WEIGHTS
+        from detector.model_files import ROBOT_WEIGHTS, SHIPPED_WEIGHTS  # deferred: `poles --help` reads the recipe
 
         return ROBOT_WEIGHTS if self.network == "crops" else SHIPPED_WEIGHTS
 

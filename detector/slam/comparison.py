@@ -4,7 +4,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from rich.table import Table
 
+from detector.console import make_console
 from detector.records import JsonRecord
 from detector.slam.figures import RunFigures
 
@@ -88,9 +90,6 @@ def _summary(name: str, runs: list[RunFigures]) -> BackendRow:
 
 def print_comparison(rows: list[BackendRow], title: str) -> None:
     """Print one table row per back end: errors against the truth, missing and phantom landmarks, consistency."""
-    from detector.console import make_console
-    from rich.table import Table
-
     table = Table(title=title)
     for column in ("back end", "landmark mean (m)", "robot mean (m)", "odometry alone (m)", "missing", "phantoms",
                    "NEES median (3 dof)", "NEES 95 % band", "NIS median (2 dof)"):

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from detector.atomic import atomic_path, write_json
+from detector.figures import plt, save_figure
 from detector.slam.figures import RunFigures
 from naoslam.runner import Sequence, SlamResult
 
@@ -41,8 +42,6 @@ def plot_map(result: SlamResult, png: Path, title: str) -> Path:
     """True and estimated landmarks and paths (and odometry), like the thesis's map figures. A run without robot
     truth (a UTIAS log) is drawn moved by the rigid fit of its map onto the true landmarks, the one its landmark
     error is scored after."""
-    from detector.figures import plt, save_figure
-
     alignment = result.truth_alignment()
     rotation, translation = alignment if alignment else (np.eye(2), np.zeros(2))
     moved = " (fitted onto the truth)" if alignment else ""
@@ -75,8 +74,6 @@ def plot_map(result: SlamResult, png: Path, title: str) -> Path:
 
 def plot_errors(result: SlamResult, png: Path) -> Path:
     """Robot position error over time for the filter and for odometry alone."""
-    from detector.figures import plt, save_figure
-
     fig, ax = plt.subplots(figsize=(7, 3), constrained_layout=True)
     ax.plot(result.times, np.linalg.norm(result.poses[:, :2] - result.true_poses[:, :2], axis=1), label=result.label)
     if result.odometry_poses is not None:

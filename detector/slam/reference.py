@@ -8,6 +8,7 @@ Training side only: ``naoslam`` never imports GTSAM.
 """
 from __future__ import annotations
 
+import gtsam
 import numpy as np
 
 from naoslam.measurement import Measurement
@@ -30,8 +31,6 @@ def true_identity(m: Measurement) -> str | None:
 def smooth(sequence: Sequence, stride_scale_std: float = 0.3, turn_scale_std: float = 0.1,
            pose_std: float = 0.01) -> SlamResult:
     """Batch-optimise a measurement-level sequence: a simulated walk or a UTIAS log (one pose per frame)."""
-    import gtsam
-
     graph, initial = gtsam.NonlinearFactorGraph(), gtsam.Values()
     scales = gtsam.symbol("s", 0)
     graph.add(gtsam.PriorFactorPoint2(scales, np.ones(2), gtsam.noiseModel.Diagonal.Sigmas(
@@ -96,8 +95,6 @@ def _relative_motion(controls: list[np.ndarray], motion: OdometryModel | Velocit
 def _odometry_factor(previous, current, scales, controls: list[np.ndarray], motion: OdometryModel | VelocityModel):
     """Between factor whose measured motion depends on the scale variable (numeric Jacobians); its noise is the
     motion model's, propagated over the controls."""
-    import gtsam
-
     covariance = np.eye(3) * 1e-10
     pose = np.zeros(3)
     for u in controls:

@@ -56,7 +56,7 @@ def image_sequences(config: SimConfig, front_ends: list[FrontEndSpec], progress:
                     camera_pose: bool = True) -> list[Sequence]:
     """One walk, its frames rendered once, seen through each front end in turn. The front ends are opened first, so
     an unreadable model or a missing calibration is refused before a minute of rendering."""
-    from detector.synth.walk import render_walk, walk_camera_poses
+    from detector.synth.walk import render_walk, walk_camera_poses  # deferred: only image-level walks render
 
     measurers = [front_end.measurer() for front_end in front_ends]
     walk = simulate(config)

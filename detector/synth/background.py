@@ -63,7 +63,7 @@ PILE_TILE_M = 0.5
 @lru_cache(maxsize=1)
 def surface_photos() -> dict[str, np.ndarray]:
     """scikit-image's grey texture photos, each scaled to mean 1 (multiplies a surface's colour)."""
-    import skimage.data
+    import skimage.data  # deferred: the photos load only when a rendered room is drawn
 
     photos = {name: getattr(skimage.data, name)().astype(np.float32) for name in ("brick", "gravel", "grass")}
     return {name: photo / photo.mean() for name, photo in photos.items()}

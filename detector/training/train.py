@@ -16,6 +16,9 @@ from dataclasses import asdict, dataclass, field
 from functools import partial
 from pathlib import Path
 
+import cv2
+import numpy as np
+import torch
 from ultralytics import YOLO
 from ultralytics.cfg import check_cfg, smart_value
 from ultralytics.models.yolo.segment import SegmentationTrainer
@@ -278,10 +281,6 @@ def recalibrate_batchnorm(weights: Path, images: list[Path], imgsz: tuple[int, i
     After very short training the running statistics still sit near their initial values (Ultralytics' momentum
     is 0.03), so the network answers every frame alike; this is the "precise BN" fix. Writes a new checkpoint.
     """
-    import cv2
-    import numpy as np
-    import torch
-
     checkpoint = read_checkpoint(weights)
     model = (checkpoint.get("ema") or checkpoint["model"]).float()
     frames = [cv2.resize(cv2.imread(str(p)), imgsz[::-1])[:, :, ::-1] for p in images]
