@@ -1,7 +1,7 @@
 """The augmentation ranges (defaults: the 2024 thesis's Roboflow settings) and their validation."""
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass, fields
 from pathlib import Path
 
 import yaml
@@ -64,6 +64,3 @@ class AugmentConfig:
             return cls(**data)
         except ValueError as exc:
             raise ValueError(f"{path}: {exc}") from None
-
-    def as_dict(self) -> dict:
-        return asdict(self)

@@ -88,7 +88,7 @@ def _read_coco_split(split: str, json_path: Path, problems: list[Problem], renam
 
 
 def _categories(raw: list, annotations: list, json_path: Path, problems: list[Problem],
-                renames: dict[str, str] | None) -> dict:
+                renames: dict[str, str] | None) -> dict[int, str | None]:
     """Category id -> landmark code (None: names no landmark). Roboflow's placeholder supercategory (id 0,
     the project's name, which no annotation uses) is skipped; the rest go through ``class_codes`` and, where they
     name no landmark, ``unknown_class_problems`` with the ``annotations`` that use them."""
