@@ -343,11 +343,11 @@ def test_a_map_without_robot_truth_is_drawn_with_the_fit_it_is_scored_after():
 
 
 def test_utias_map_plot_shows_the_estimate_fitted_onto_the_truth(tmp_path, monkeypatch):
-    import detector.figures
+    import detector.slam.outputs
     from detector.slam.outputs import plot_map
 
     drawn = {}
-    monkeypatch.setattr(detector.figures, "save_figure", lambda fig, png: drawn.setdefault("axes", fig.axes[0]))
+    monkeypatch.setattr(detector.slam.outputs, "save_figure", lambda fig, png: drawn.setdefault("axes", fig.axes[0]))
     result, truth = _result_of_a_moved_map(true_poses=None)
     plot_map(result, tmp_path / "map.png", "moved")
     by_label = {c.get_label(): c.get_offsets() for c in drawn["axes"].collections}
