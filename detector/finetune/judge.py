@@ -18,10 +18,10 @@ from detector.synth.scene import SceneConfig
 
 #: Width bins (``evaluation.by_width``) that make up "under 16 px".
 SMALL_BINS = ("< 10 px", "10-16 px")
-#: The fresh rendered sets every fine-tune is judged on besides the team's held-out frames: what the shipped model
-#: was made for (varied paint, near and far) and far poles alone (3-9 m, 6-18 px wide). Each has its own seed and is
-#: never trained on.
-RENDERED_SETS = {"rendered": {"far_share": 0.0, "seed": 9101}, "far poles": {"far_share": 1.0, "seed": 9102}}
+#: The fresh rendered sets, by name, as (far share, seed), that every fine-tune is judged on besides the team's
+#: held-out frames: what the shipped model was made for (varied paint, near and far) and far poles alone (3-9 m,
+#: 6-18 px wide). Each has its own seed and is never trained on.
+RENDERED_SETS = {"rendered": (0.0, 9101), "far poles": (1.0, 9102)}
 
 
 @dataclass(frozen=True)

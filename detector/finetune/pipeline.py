@@ -261,9 +261,8 @@ def _evaluate(folder: Path, data: Path, finetuned: Path, blend: BlendChoice, con
     shutil.rmtree(folder, ignore_errors=True)
     held_out = "test" if load_dataset(data).split("test") else "valid"
     sets = {f"your {held_out} frames": (data, held_out)}
-    for name, kind in RENDERED_SETS.items():
-        sets[name] = (render_set(folder / "sets" / name.replace(" ", "-"), recipe.evaluation_frames,
-                                 kind["far_share"], kind["seed"]),
+    for name, (far_share, seed) in RENDERED_SETS.items():
+        sets[name] = (render_set(folder / "sets" / name.replace(" ", "-"), recipe.evaluation_frames, far_share, seed),
                       "test")
     models = {REFERENCE: recipe.start.weights, "fine-tune": finetuned,
               f"blend {blend.chosen:g}": blend.weights}
