@@ -16,11 +16,11 @@ from detector.datasets.polygons import polygon_to_mask
 from detector.datasets.truth import load_camera_poses, load_truth
 from detector.evaluation.by_width import recall_by_width, width_bin_names
 from detector.evaluation.counting import (ImageEvaluation, best_threshold, confidence_sweep, confusion_matrix,
-                                          evaluate_image, map_scores, outcome, totals)
+                                          evaluate_image, map_scores, outcome)
 from detector.evaluation.paired import f1_difference
 from detector.evaluation.plots import plot_confusion, plot_per_image, plot_recall_by_width, plot_sweep, write_overlay
 from detector.evaluation.predictors import Predictor
-from detector.evaluation.results import Confusion, ErrorStats, Evaluation, FrameCounts
+from detector.evaluation.results import Confusion, Counts, ErrorStats, Evaluation, FrameCounts
 from detector.atomic import write_json
 from naoslam.camera import NAO_HFOV_DEG
 from naoslam.landmarks import CLASSES
@@ -49,7 +49,8 @@ def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", c
 
     poses = load_camera_poses(dataset) if use_pose else {}
     images = evaluate_frames(predictor, samples, truth, f"evaluating {predictor.name}", progress, write_errors, poses)
-    counts = totals(images, conf)
+    per_image = tuple(FrameCounts(image.name, image.counts(conf)) for image in images)
+    counts = sum((frame.counts for frame in per_image), Counts())
     sweep = confidence_sweep(images)
     best = max(sweep, key=lambda point: point.f1)
     outcomes = [outcome(image, conf) for image in images]
@@ -60,7 +61,7 @@ def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", c
         model=predictor.name, data=Path(data), split=split, conf=conf, images=len(images),
         matching=predictor.matching, camera_poses=len(poses), counts=counts, precision=precision, recall=recall, f1=f1,
         mean_iou=_mean_tp_iou(images, conf), best_f1_conf=best.conf, best_f1=best.f1, sweep=tuple(sweep),
-        per_image=tuple(FrameCounts(image.name, image.counts(conf)) for image in images),
+        per_image=per_image,
         confusion=Confusion((*CLASSES, "none"), tuple(tuple(int(c) for c in row) for row in confusion)),
         class_swaps=sum(len(o.swaps) for o in outcomes), duplicates=sum(len(o.duplicates) for o in outcomes),
         recall_by_width=tuple(recall_by_width(images, conf)), map=map_scores(images, CLASSES),

@@ -67,9 +67,9 @@ def compare_backends(make_sequence, seeds: list[int], backends: dict[str, SlamCo
         sequence = make_sequence(seed)
         for name, config in backends.items():
             if isinstance(config, SlamConfig) or localisable(sequence):
-                runs[name].append(RunFigures.of(run_slam(sequence, config)))
+                runs[name].append(RunFigures.of(run_slam(sequence, config).metrics()))
         if reference is not None:
-            runs[REFERENCE_ROW].append(RunFigures.of(reference(sequence)))
+            runs[REFERENCE_ROW].append(RunFigures.of(reference(sequence).metrics()))
     return [_summary(name, figures) for name, figures in runs.items() if figures]
 
 

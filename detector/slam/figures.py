@@ -5,7 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from detector.records import JsonRecord
-from naoslam.runner import SlamResult
 
 
 @dataclass(frozen=True)
@@ -24,9 +23,8 @@ class RunFigures(JsonRecord):
     initialised: int
 
     @classmethod
-    def of(cls, result: SlamResult) -> RunFigures:
-        metrics = result.metrics()
-
+    def of(cls, metrics: dict) -> RunFigures:
+        """The figures of one run's metrics (``SlamResult.metrics()``)."""
         def mean(key: str) -> float | None:
             return metrics[key]["mean"] if key in metrics else None
 

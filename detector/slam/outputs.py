@@ -31,7 +31,7 @@ def write_outputs(result: SlamResult, sequence: Sequence, out: Path) -> RunFigur
     plot_map(result, out / "map.png", sequence.name)
     if result.true_poses is not None:
         plot_errors(result, out / "errors.png")
-    return RunFigures.of(result)
+    return RunFigures.of(metrics)
 
 
 #: A map's title wraps at this many characters, so the back end's long label stays inside the 7-inch figure.
