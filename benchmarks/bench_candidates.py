@@ -42,19 +42,21 @@ def candidate_recall(root: Path, use_pose: bool) -> dict:
     """Covered and framed poles (all, and under 16 px), candidates per frame and ms per frame over a dataset."""
     import cv2
 
-    from detector.crops.samples import _annotations, coverage, ground_view_of, label_boxes, pole_for
+    from detector.crops.samples import coverage, ground_view, label_boxes, pole_for
     from detector.datasets.io import load_dataset
+    from detector.datasets.truth import load_camera_poses
     from naoslam.candidates import CandidateFinder
 
-    finder, annotations = CandidateFinder(), _annotations(root)
+    dataset = load_dataset(root)
+    finder, poses = CandidateFinder(), load_camera_poses(dataset)
     counts = {"poles": 0, "covered": 0, "framed": 0, "small": 0, "small_covered": 0, "small_framed": 0}
     per_frame, seconds = [], 0.0
-    for sample in load_dataset(root).samples:
+    for sample in dataset.samples:
         if sample.image is None:
             continue
         frame = cv2.imread(str(sample.image))
         height, width = frame.shape[:2]
-        view = ground_view_of(annotations.get(sample.image.name), (height, width)) if use_pose else None
+        view = ground_view(poses.get(sample.image.name), (height, width)) if use_pose else None
         start = time.perf_counter()
         found = finder(frame, view)
         seconds += time.perf_counter() - start

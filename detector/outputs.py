@@ -124,8 +124,14 @@ def _refuse_foreign(out: Path, kind: str) -> None:
         raise FileExistsError(f"{out} holds files that poles did not write (no {OUTPUT_MARKER} in it), so "
                               "--force does not replace it: choose another --out, or move that folder away yourself")
     record = _record(marker)
-    if record is None:  # an output of an earlier release, which kept no list
-        return
+    if record is None:
+        others = sorted(str(path.relative_to(out)) for path in out.rglob("*")
+                        if path.is_file() and path.name != OUTPUT_MARKER)
+        if not others:
+            return
+        raise FileExistsError(f"{out} holds {_named(others)} beside a {OUTPUT_MARKER} that lists no files (an earlier "
+                              "release's, or not poles's), so poles cannot tell which it wrote and --force does not "
+                              "replace it: choose another --out, or move that folder away yourself")
     if record.get("kind") != kind:
         raise FileExistsError(f"{out} holds poles's {record.get('kind')} output, not a {kind}: --force replaces only "
                               "the same kind - choose another --out")
@@ -133,13 +139,18 @@ def _refuse_foreign(out: Path, kind: str) -> None:
     foreign = sorted(str(path.relative_to(out)) for path in out.rglob("*")
                      if path.is_file() and path.name != OUTPUT_MARKER and str(path.relative_to(out)) not in written)
     if foreign:
-        more = f" and {len(foreign) - NAMED_FILES} more" if len(foreign) > NAMED_FILES else ""
-        raise FileExistsError(f"{out} holds files poles did not write there ({', '.join(foreign[:NAMED_FILES])}"
-                              f"{more}), so --force does not replace it: move them away, or choose another --out")
+        raise FileExistsError(f"{out} holds files poles did not write there ({_named(foreign)}), so --force does not "
+                              "replace it: move them away, or choose another --out")
+
+
+def _named(files: list[str]) -> str:
+    """The first ``NAMED_FILES`` of ``files``, and how many more."""
+    more = f" and {len(files) - NAMED_FILES} more" if len(files) > NAMED_FILES else ""
+    return ", ".join(files[:NAMED_FILES]) + more
 
 
 def _record(marker: Path) -> dict | None:
-    """The marker's record; None for an earlier release's plain-text marker."""
+    """The marker's record; None for one it cannot read (an earlier release's plain-text marker)."""
     try:
         record = json.loads(marker.read_text(encoding="utf-8"))
     except (OSError, ValueError):

@@ -4,7 +4,6 @@ export checked against PyTorch, and the operating threshold the best F1 on the v
 Everything lands in the run folder at once, or nothing does."""
 from __future__ import annotations
 
-import json
 import os
 import platform
 import time
@@ -17,12 +16,14 @@ from detector.crops.network import CROP_SIZE_WH
 from detector.crops.samples import NO_POLE, CropSet, crops_of_dataset
 from detector.crops.settings import CropTrainSettings
 from detector.crops.train import EpochResult, load_checkpoint, save_checkpoint, train_crop_network
-from detector.datasets.io import load_dataset
+from detector.datasets.intake import open_dataset
+from detector.datasets.model import Dataset
 from detector.outputs import check_output_folder, output_folder
 from detector.datasets.truth import load_camera_poses, load_truth
 from detector.evaluation.counting import best_threshold, confidence_sweep
 from detector.evaluation.predictors import RuntimePredictor
 from detector.evaluation.run import evaluate_frames
+from detector.formats import write_record
 from detector.model_files import add_metadata
 from detector.records import JsonRecord
 
@@ -44,19 +45,27 @@ def machine() -> str:
     return f"{os.cpu_count()} cores, {name}"
 
 
-def crop_sets(data: list[Path], split: str, seed: int, progress: bool = True) -> CropSet:
+def crop_sets(datasets: list[Dataset], split: str, seed: int, progress: bool = True) -> CropSet:
     """The crops of one split of every dataset."""
-    return CropSet.concatenate([crops_of_dataset(Path(root), (split,), CROP_SIZE_WH, seed=seed + i,
-                                                 progress=progress) for i, root in enumerate(data)])
+    return CropSet.concatenate([crops_of_dataset(dataset, (split,), CROP_SIZE_WH, seed=seed + i, progress=progress)
+                                for i, dataset in enumerate(datasets)])
 
 
-def valid_threshold(model: Path, data: list[Path], progress: bool = True) -> tuple[float, float]:
+def open_training_data(data: list[Path], progress: bool = True) -> list[Dataset]:
+    """Every dataset through the intake every command uses (``poles check``'s rules, images decoded), its truth
+    read too, so that whatever refuses it does so before the crops are cut and the network trained."""
+    datasets = [open_dataset(root, progress=progress) for root in data]
+    for dataset in datasets:
+        load_truth(dataset)
+    return datasets
+
+
+def valid_threshold(model: Path, datasets: list[Dataset], progress: bool = True) -> tuple[float, float]:
     """The confidence threshold of the best F1 over every dataset's valid frames (each with its camera pose where
     annotations.json records one, as on the robot), and that F1."""
     predictor = RuntimePredictor(model)
     images = []
-    for root in data:
-        dataset = load_dataset(root)
+    for dataset in datasets:
         images += evaluate_frames(predictor, dataset.split("valid"), load_truth(dataset), "choosing the threshold",
                                   progress, poses=load_camera_poses(dataset))
     sweep = confidence_sweep(images)
@@ -91,23 +100,29 @@ def train_robot_front_end(data: list[Path], out: Path, settings: CropTrainSettin
                           progress: bool = True) -> RobotTraining:
     """Train the crop network on ``data`` into the run folder ``out``; returns its summary (also in history.json)."""
     data = [Path(root) for root in data]
-    inputs = (*protect, *(folder for root in data for folder in load_dataset(root).input_folders()))
+    datasets = open_training_data(data, progress)
+    inputs = (*protect, *(folder for dataset in datasets for folder in dataset.input_folders()))
     check_output_folder(out, force, inputs, RUN_KIND)
     start = load_checkpoint(weights) if weights is not None else None
     began = time.perf_counter()
-    train, valid = crop_sets(data, "train", settings.seed, progress), crop_sets(data, "valid", settings.seed + 1000,
-                                                                                progress)
+    train, valid = (crop_sets(datasets, split, settings.seed + offset, progress)
+                    for split, offset in (("train", 0), ("valid", 1000)))
     for name, crops in (("train", train), ("valid", valid)):
         if not (crops.classes != NO_POLE).any():
             raise ValueError(f"{', '.join(map(str, data))}: no labelled pole in the {name} split - the crop network "
                              f"needs poles to learn from in train and valid (`poles split` makes both)")
     with output_folder(out, force, inputs, RUN_KIND) as folder:
         network, history = train_crop_network(train, valid, settings, start)
+        if max(h.pole_recall for h in history) == 0:
+            raise ValueError(f"{', '.join(map(str, data))}: after {len(history)} epoch(s) the crop network finds none "
+                             f"of the {int((valid.classes != NO_POLE).sum())} pole crops of the valid frames, so no "
+                             f"model was written - train on more frames ({sum(len(d.split('train')) for d in datasets)}"
+                             " train frames here; the shipped model learnt from 7,000) or for more --epochs")
         save_checkpoint(network, folder / CHECKPOINT, history, settings)
         difference = export_crop_network(network, folder / MODEL, valid.crops[:256], EXPORT_CONF)
-        threshold, f1 = valid_threshold(folder / MODEL, data, progress)
+        threshold, f1 = valid_threshold(folder / MODEL, datasets, progress)
         training = {"minutes": round((time.perf_counter() - began) / 60, 1), "hardware": machine(),
-                    "epochs": len(history), "frames": sum(len(load_dataset(root).split("train")) for root in data)}
+                    "epochs": len(history), "frames": sum(len(dataset.split("train")) for dataset in datasets)}
         add_metadata(folder / MODEL, operating_conf=threshold, training=training)
         plot_crop_history(history, folder / "training_curves.png")
         best = max(history, key=lambda h: h.score)
@@ -115,5 +130,5 @@ def train_robot_front_end(data: list[Path], out: Path, settings: CropTrainSettin
                                 len(history), round(sum(h.seconds for h in history) / 60, 2), float(difference),
                                 float(threshold), float(f1), settings, weights, Path(out) / MODEL)
         epochs = [asdict(h) for h in history]
-        (folder / "history.json").write_text(json.dumps({**summary.to_json(), "history": epochs}, indent=1))
+        write_record(folder / "history.json", "robot training", {**summary.to_json(), "history": epochs})
     return summary

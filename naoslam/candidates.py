@@ -34,6 +34,9 @@ BAND_HSV = ((15, 128), 40, 15)
 ROW_STEP_AT_480 = 4
 #: Frame columns per scanned column: one per pixel pair, the chroma resolution of the camera's YUYV.
 COLUMN_STEP = 2
+#: A frame narrower or lower than this many pixels shows no pole the grid could find (a pole's band spans a few rows
+#: and columns even 9 m away): it has no candidates.
+MIN_FRAME_SIDE = 8
 #: Pink samples a blob needs on the scanned grid.
 MIN_BLOB_SAMPLES = 2
 #: Junction samples this close along a row (and on the next row) are one junction: noise and JPEG chroma break it.
@@ -150,6 +153,8 @@ class CandidateFinder:
         """Candidates in a BGR or YUYV frame, junctions first, then pink blobs, each kind best first (with a view:
         the anchor's width nearest a pole's there; without: the widest); only rows below the horizon are scanned
         when the ``view`` gives one."""
+        if frame.shape[0] < MIN_FRAME_SIDE or frame.shape[1] < MIN_FRAME_SIDE:
+            return []
         top = view.band_top() if view is not None else 0
         step = row_step(frame.shape[0])
         pink, band = colour_masks(scan_grid_bgr(frame, slice(top, frame.shape[0], step)))

@@ -680,7 +680,168 @@ def test_the_rename_advice_leads_a_flood_of_per_line_errors(dataset_copy, capsys
     set_yaml(dataset_copy, names=["ball", "gp", "yp", "pb", "pg", "py"])
     for label in sorted((dataset_copy / "train" / "labels").glob("*.txt")):
         label.write_text(label.read_text() + "".join("7 0.1 0.1 0.2\n" for _ in range(5)))
-    assert main(["split", str(dataset_copy), "--out", str(dataset_copy.parent / "out")]) == 2
-    err = capsys.readouterr().err
-    shown = err.split("problem(s) in the dataset:", 1)[1].splitlines()
-    assert "--rename" in shown[1] and "'ball'" in shown[1], shown[:3]
+    first, *rest = _refusal_lines(["split", str(dataset_copy), "--out", str(dataset_copy.parent / "out")], capsys)
+    assert "--rename" in first and "'ball'" in first, first
+    assert "`poles finetune`" in first and "poles convert DATA --out NEW --rename 'ball=CODE'" in first, first
+    assert any("x " in line and "class id 7" in line for line in rest), rest
+
+
+def _refusal_lines(argv: list[str], capsys) -> list[str]:
+    """The lines of a refusal from its "poles CMD:" line on (progress bars before it left out)."""
+    assert main(argv) == 2
+    lines = capsys.readouterr().err.splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith(f"poles {argv[0]}:"))
+    return lines[start:]
+
+
+def test_a_short_names_list_is_named_before_the_lines_it_breaks(dataset_copy, capsys):
+    """Labels that use class ids `names` leaves out: data.yaml is the cause, named first, the lines grouped after."""
+    set_yaml(dataset_copy, names=["bp"], nc=6)
+    lines = _refusal_lines(["convert", str(dataset_copy), "--out", str(dataset_copy.parent / "out")], capsys)
+    assert "data.yaml" in lines[0] and "`names` lists 1 class(es) (nc: 6)" in lines[0], lines[0]
+    assert "list every class" in lines[0]
+    assert any("x " in line and "out of range" in line for line in lines[1:]), lines
+    assert len(lines) <= 10 and "--fix" not in lines[-1], lines
+
+
+def test_check_prints_the_cause_before_the_lines_it_explains(dataset_copy, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    set_yaml(dataset_copy, names=["bp"], nc=6)
+    assert main(["check", str(dataset_copy)]) == 1
+    out = capsys.readouterr().out
+    kinds = [line for line in out.splitlines() if " x error:" in line]
+    assert "`names` lists 1 class(es)" in kinds[0], kinds
+
+
+def test_a_broken_path_is_the_first_line_of_the_refusal(dataset_copy, capsys):
+    set_yaml(dataset_copy, path="../nowhere")
+    lines = _refusal_lines(["split", str(dataset_copy), "--out", str(dataset_copy.parent / "out")], capsys)
+    assert "path: '../nowhere' names no folder" in lines[0] and "delete the `path:` line" in lines[0], lines
+
+
+def test_a_refusal_check_fix_cannot_clear_does_not_suggest_it(dataset_copy, tmp_path, capsys):
+    for label in sorted((dataset_copy / "train" / "labels").glob("*.txt")):
+        label.write_text("0 0.5 0.5 0.2 0.3\n")
+    lines = _refusal_lines(["check", str(dataset_copy), "--fix", "--out", str(tmp_path / "clean")], capsys)
+    assert "box" in lines[0] and not any("--fix --out CLEAN" in line for line in lines), lines
+    lines = _refusal_lines(["split", str(dataset_copy), "--out", str(tmp_path / "out")], capsys)
+    assert "box" in lines[0] and not any("--fix" in line for line in lines), lines
+
+
+def test_a_refusal_check_fix_clears_suggests_it(dataset_copy, tmp_path, capsys):
+    append_line(dataset_copy, "0 0.1 nan 0.2 0.1 0.2 0.2")
+    lines = _refusal_lines(["split", str(dataset_copy), "--out", str(tmp_path / "out")], capsys)
+    assert "not finite" in lines[0] and "`poles check DATA --fix --out CLEAN`" in lines[-1], lines
+
+
+def test_a_coco_export_of_boxes_is_told_it_has_boxes_whatever_its_classes(dataset_copy, tmp_path, monkeypatch,
+                                                                           capsys):
+    """Roboflow's COCO detection export: `segmentation: []` on every annotation, a class that is no pole."""
+    monkeypatch.chdir(tmp_path)
+    coco = to_coco(dataset_copy, tmp_path / "coco")
+    for split in ("train", "valid", "test"):
+        path = coco / split / "_annotations.coco.json"
+        data = json.loads(path.read_text())
+        data["categories"] = [{"id": 0, "name": "leaves", "supercategory": "none"},
+                              {"id": 1, "name": "Spot", "supercategory": "leaves"}]
+        for annotation in data["annotations"]:
+            annotation.update(category_id=1, segmentation=[], bbox=[1, 2, 3, 4])
+        path.write_text(json.dumps(data))
+    before = tree_hash(coco)
+    assert main(["check", str(coco)]) == 1
+    out = capsys.readouterr().out
+    assert "box without a polygon" in next(line for line in out.splitlines() if " x error:" in line)
+    assert "Spot=CODE" not in out
+    train = load_dataset(coco).split("train")
+    assert all(sample.boxes and not sample.instances for sample in train if sample.unread)  # the box-only column
+    assert sum(1 for sample in train if sample.boxes) > 0
+    lines = _refusal_lines(["convert", str(coco), "--out", str(tmp_path / "out")], capsys)
+    assert "box without a polygon" in lines[0] and "instance segmentation" in lines[0], lines
+    assert tree_hash(coco) == before
+
+
+def test_a_coco_class_is_named_by_its_category_id_and_counts_only_read_images(dataset_copy, tmp_path, monkeypatch,
+                                                                              capsys):
+    monkeypatch.chdir(tmp_path)
+    coco = to_coco(dataset_copy, tmp_path / "coco")
+    path = coco / "train" / "_annotations.coco.json"
+    data = json.loads(path.read_text())
+    data["categories"][1]["name"] = "midrib"  # id 1, index 0 once the placeholder is skipped
+    used = sum(a["category_id"] == 1 for a in data["annotations"])
+    moved = next(image for image in data["images"]
+                 if any(a["image_id"] == image["id"] and a["category_id"] == 1 for a in data["annotations"]))
+    in_moved = sum(a["category_id"] == 1 and a["image_id"] == moved["id"] for a in data["annotations"])
+    path.write_text(json.dumps(data))
+    (coco / "valid" / "images").mkdir()
+    shutil.move(coco / "train" / moved["file_name"], coco / "valid" / "images" / moved["file_name"])
+    assert main(["check", str(coco)]) == 1
+    out = " ".join(capsys.readouterr().out.split())
+    assert f"category 1 'midrib' names no landmark and labels {used - in_moved} outline(s)" in out, out
+    assert f"listed but missing beside it (it is at {coco / 'valid' / 'images' / moved['file_name']})" in out, out
+
+
+@pytest.mark.parametrize("damage", ["class id out of range", "duplicate class names", "pixel coordinates",
+                                    "unknown class name", "bounding-box line", "zero-byte image"])
+def test_train_robot_refuses_what_check_refuses_in_the_same_words(damage, dataset_copy, tmp_path, capsys):
+    DAMAGES[damage](dataset_copy)
+    before = tree_hash(dataset_copy)
+    converted = _refusal_lines(["convert", str(dataset_copy), "--out", str(tmp_path / "copy")], capsys)
+    trained = _refusal_lines(["train-robot", str(dataset_copy), "--out", str(tmp_path / "robot"), "--epochs", "1",
+                              "--threads", "1"], capsys)
+    assert trained[0].split(":", 1)[1] == converted[0].split(":", 1)[1], (trained[0], converted[0])
+    assert not (tmp_path / "robot").exists() and tree_hash(dataset_copy) == before
+
+
+def test_train_robot_reads_the_truth_before_it_trains(synth_dataset, tmp_path, capsys, monkeypatch):
+    """An annotations.json whose landmarks do not follow the labels is refused before any crop is cut."""
+    import detector.robot_training
+
+    data = Path(shutil.copytree(synth_dataset, tmp_path / "data"))
+    annotations = json.loads((data / "annotations.json").read_text())
+    entry = next(e for e in annotations["images"].values() if e.get("landmarks"))
+    entry["landmarks"][0]["cls"] = "none"
+    (data / "annotations.json").write_text(json.dumps(annotations))
+    monkeypatch.setattr(detector.robot_training, "crop_sets", lambda *a, **k: pytest.fail("cropped before refusing"))
+    lines = _refusal_lines(["train-robot", str(data), "--out", str(tmp_path / "robot")], capsys)
+    assert "annotations.json" in lines[0] and "do not follow its label file" in lines[0], lines
+
+
+def test_train_robot_writes_no_model_that_finds_no_valid_pole(synth_dataset, tmp_path):
+    from detector.crops.settings import CropTrainSettings
+    from detector.robot_training import train_robot_front_end
+
+    frozen = CropTrainSettings(epochs=1, learning_rate=1e-12, threads=1)  # the network stays as it started
+    with pytest.raises(ValueError, match="finds none of the .* pole crops of the valid frames"):
+        train_robot_front_end([synth_dataset], tmp_path / "robot", frozen, progress=False)
+    assert not (tmp_path / "robot").exists()
+
+
+def test_a_tiny_frame_is_refused_by_check_and_has_no_candidates(dataset_copy, capsys, tmp_path, monkeypatch):
+    from naoslam.crop_detector import CropDetector
+
+    monkeypatch.chdir(tmp_path)
+    cv2.imwrite(str(first_image(dataset_copy)), np.zeros((1, 1, 3), np.uint8))
+    assert main(["check", str(dataset_copy)]) == 1
+    assert "image is 1x1 px: too small to show a pole" in " ".join(capsys.readouterr().out.split())
+    assert CropDetector("shipped-robot")(np.zeros((1, 1, 3), np.uint8)) == []
+
+
+def test_a_missing_robot_checkpoint_is_called_missing(synth_dataset, tmp_path, capsys):
+    lines = _refusal_lines(["train-robot", str(synth_dataset), "--out", str(tmp_path / "robot"), "--weights",
+                            str(tmp_path / "none.pt")], capsys)
+    assert "none.pt: no such checkpoint" in lines[0] and "FileNotFoundError" not in lines[0], lines
+
+
+def test_evaluate_says_when_pose_finds_no_recorded_pose(dataset_copy, tmp_path, capsys):
+    (dataset_copy / "annotations.json").unlink()
+    assert main(["evaluate", str(dataset_copy), "--model", "colour-filter", "--pose", "--out",
+                 str(tmp_path / "ev")]) == 0
+    assert "note: --pose: none of the test frames record their camera pose" in capsys.readouterr().out
+
+
+def test_finetune_on_an_export_without_poles_names_the_export_and_a_fix_it_has(dataset_copy, tmp_path, capsys):
+    for label in dataset_copy.glob("*/labels/*.txt"):
+        label.write_text("")
+    lines = _refusal_lines(["finetune", str(dataset_copy), "--out", str(tmp_path / "run"), "--model", "robot"], capsys)
+    assert f"{dataset_copy}: no annotated pole" in lines[0] and "annotate the poles" in lines[0], lines
+    assert "--paint-from" not in "\n".join(lines) and str(tmp_path / "run") not in lines[0].split(" - ")[0], lines

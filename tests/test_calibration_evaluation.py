@@ -11,6 +11,7 @@ import cv2
 import numpy as np
 import pytest
 
+from detector.formats import read_record
 from calibration.fit import WALK_RELATIVE_STD, calibrate, fit_power_law
 from calibration.report import CalibrationReport
 from detector.model_files import load_calibration
@@ -413,19 +414,20 @@ def test_evaluate_keeps_a_used_out_and_force_replaces_it_whole(synth_dataset, tm
     out = tmp_path / "eval"
     (out / "errors").mkdir(parents=True)
     (out / "errors" / "old-model_fp.jpg").write_bytes(b"yesterday's overlay")
-    (out / OUTPUT_MARKER).write_text("an earlier evaluation's")
+    (out / OUTPUT_MARKER).write_text(json.dumps({"written_by": "poles", "kind": "evaluation",
+                                                 "files": ["errors/old-model_fp.jpg"]}))
     argv = ["evaluate", str(synth_dataset), "--model", "colour-filter", "--out", str(out)]
     assert main(argv) == 2
     assert "--force" in capsys.readouterr().err
     assert (out / "errors" / "old-model_fp.jpg").exists() and not (out / "metrics.json").exists()
     assert main([*argv, "--force"]) == 0
     assert not (out / "errors" / "old-model_fp.jpg").exists()  # no overlay of another run is left to mislead
-    assert json.loads((out / "metrics.json").read_text())["model"] == "colour-filter"
+    assert read_record(out / "metrics.json", "evaluation")["model"] == "colour-filter"
 
 
 def test_evaluate_writes_metrics_plots_and_overlays(synth_dataset, tmp_path):
     metrics = evaluate(RuntimePredictor("colour-filter"), synth_dataset, tmp_path / "eval", progress=False)
-    assert Evaluation.from_json(json.loads((tmp_path / "eval" / "metrics.json").read_text())) == metrics
+    assert Evaluation.from_json(read_record(tmp_path / "eval" / "metrics.json", "evaluation")) == metrics
     test = load_dataset(synth_dataset).split("test")
     counts = metrics.counts
     assert metrics.images == len(test) == len(metrics.per_image) and metrics.bearing_error is not None
@@ -494,9 +496,9 @@ def test_a_models_calibration_holds_only_at_the_input_width_it_was_measured_at(c
                      str(tmp_path / f"eval{len(calibration)}")])
 
     assert evaluate_at_320("--calibration", str(small)) == 0
-    assert json.loads((tmp_path / "eval2" / "metrics.json").read_text())["range_error"]["median"] < 0.1
+    assert read_record(tmp_path / "eval2" / "metrics.json", "evaluation")["range_error"]["median"] < 0.1
     assert evaluate_at_320() == 0  # the shipped calibration is the 640 px one: no range figures rather than wrong ones
-    assert json.loads((tmp_path / "eval0" / "metrics.json").read_text())["range_error"] is None
+    assert read_record(tmp_path / "eval0" / "metrics.json", "evaluation")["range_error"] is None
     capsys.readouterr()
     assert main(["slam", "--sim", "square", "--frontend", "shipped", "--imgsz", "320", "--duration", "5",
                  "--out", str(tmp_path / "slam")]) == 2
@@ -516,7 +518,7 @@ def test_evaluate_keeps_models_of_the_same_file_name_apart(synth_dataset, tiny_o
                  "--out", str(out)]) == 0
     folders = sorted(p.name for p in out.iterdir() if p.is_dir())
     assert folders == ["a_best.onnx", "b_best.onnx", "colour-filter", "colour-filter-2"]
-    assert [json.loads((out / f / "metrics.json").read_text())["model"] for f in folders] == folders
+    assert [read_record(out / f / "metrics.json", "evaluation")["model"] for f in folders] == folders
 
 
 def test_evaluate_prints_each_models_own_threshold(synth_dataset, tiny_onnx, tmp_path, capsys):
@@ -527,7 +529,7 @@ def test_evaluate_prints_each_models_own_threshold(synth_dataset, tiny_onnx, tmp
     row = next(line for line in printed if "threshold (the counts')" in line)
     assert re.findall(r"\d\.\d\d", row) == [f"{DEFAULT_CONF:.2f}", f"{LandmarkDetector().stored_conf:.2f}"]
     # The second column against the first, on the same frames, with its spread over them.
-    f1 = [json.loads((tmp_path / "eval" / name / "metrics.json").read_text())["f1"]
+    f1 = [read_record(tmp_path / "eval" / name / "metrics.json", "evaluation")["f1"]
           for name in (tiny_onnx.name, "poles-yolov8n-seg.onnx")]
     versus = next(line for line in printed if "F1 - the first's" in line)
     difference, low, high = map(float, re.findall(r"[+-]\d\.\d{3}", versus))
@@ -562,3 +564,19 @@ def test_the_best_threshold_is_the_best_f1s_and_none_when_every_threshold_counts
     rows = [SweepPoint(c, 0.9, 0.9, f1) for c, f1 in ((0.25, 0.80), (0.5, 0.91), (0.75, 0.88))]
     assert best_threshold(rows) == 0.5
     assert best_threshold([replace(row, f1=0.59) for row in rows]) is None
+
+
+@pytest.mark.parametrize("frames", [2, 7])
+def test_the_per_image_chart_of_a_few_long_named_frames_fits_without_a_warning(frames, tmp_path):
+    """Roboflow's file names run past 60 characters: written under a bar, they once outgrew the figure."""
+    import warnings
+
+    from detector.evaluation.plots import plot_per_image
+    from detector.evaluation.results import FrameCounts
+
+    rows = tuple(FrameCounts(f"IMG_20240612_15300{i}_jpg.rf.6c0f3a9b2e4d1f8a7c5b3e2d1a0f9e8d.jpg", Counts(1, 0, 1, 0))
+                 for i in range(frames))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        png = plot_per_image(rows, tmp_path / "per_image.png", "shipped on frames with long names")
+    assert cv2.imread(str(png)).shape[0] > 100

@@ -89,6 +89,30 @@ def test_force_replaces_only_poles_s_output_of_the_same_kind(victim, synth_datas
     assert record["kind"] == "dataset" and "data.yaml" in record["files"]
 
 
+@pytest.mark.parametrize("command", ["evaluate", "convert", "synth"])
+def test_force_keeps_a_users_file_beside_an_earlier_release_s_plain_marker(command, synth_dataset, tmp_path,
+                                                                             capsys):
+    """The previous release's marker lists no files, so nothing in the folder is known to be poles's: refused."""
+    old = tmp_path / "old-output"
+    old.mkdir()
+    (old / OUTPUT_MARKER).write_text("written by poles; --force may replace this folder")
+    (old / "my_thesis.txt").write_text("the user's thesis")
+    argv = {"evaluate": ["evaluate", str(synth_dataset), "--model", "colour-filter"],
+            "convert": ["convert", str(synth_dataset)],
+            "synth": ["synth", "--images", "2", "--workers", "1"]}[command]
+    error = _refused([*argv, "--out", str(old), "--force"], old, capsys, "my_thesis.txt")
+    first = next(line for line in error.splitlines() if line.startswith(f"poles {command}:"))
+    assert "lists no files" in first
+
+
+def test_force_replaces_an_earlier_release_s_folder_that_holds_only_its_marker(synth_dataset, tmp_path):
+    old = tmp_path / "old-output"
+    old.mkdir()
+    (old / OUTPUT_MARKER).write_text("written by poles; --force may replace this folder")
+    assert main(["convert", str(synth_dataset), "--out", str(old), "--force"]) == 0
+    assert (old / "data.yaml").is_file()
+
+
 def test_check_never_replaces_a_file_of_the_users_in_the_working_folder(dataset_copy, tmp_path, monkeypatch,
                                                                        capsys):
     for label in sorted((dataset_copy / "train" / "labels").glob("*.txt")):

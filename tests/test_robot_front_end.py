@@ -13,7 +13,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from detector.formats import read_record
+from detector.crops.network import CropArchitecture
 from detector.crops.samples import NO_POLE, crops_of_dataset, pole_for
+from detector.datasets.io import load_dataset
 from detector.evaluation.counting import evaluate_image
 from detector.evaluation.results import Counts
 from detector.synth.render import render_scene
@@ -26,9 +29,13 @@ from naoslam.detections import Detection
 from naoslam.detector import LandmarkDetector, load_detector
 from naoslam.ground import GroundView, PoleExtent
 from naoslam.landmarks import CLASSES
+from detector.model_files import ROBOT_WEIGHTS
 from tests.conftest import REPOSITORY, assert_runs_without_training_side
 
 CROP_WH = (24, 72)
+#: A small crop network of every kind of layer the shipped one may have: a full-resolution convolution, strided ones,
+#: the crop's normalising.
+TINY = CropArchitecture(CROP_WH, (8, 8, 16), (1, 2, 2), 16, normalise=True)
 
 
 def _rendered(code: str, range_m: float, angle_deg: float, seed: int):
@@ -101,9 +108,9 @@ def tiny_crop_model(synth_dataset, tmp_path_factory):
     from detector.crops.settings import CropTrainSettings
     from detector.crops.train import train_crop_network
 
-    crops = crops_of_dataset(synth_dataset, ("train", "valid", "test"), CROP_WH, progress=False)
+    crops = crops_of_dataset(load_dataset(synth_dataset), ("train", "valid", "test"), CROP_WH, progress=False)
     network, history = train_crop_network(crops, crops, CropTrainSettings(epochs=2, batch=64, threads=1),
-                                          PoleCropNet(CROP_WH), log=lambda line: None)
+                                          PoleCropNet(TINY), log=lambda line: None)
     path = tmp_path_factory.mktemp("crops") / "crops.onnx"
     export_crop_network(network, path, crops.crops[:32], conf=0.3)
     return path, crops, history
@@ -138,7 +145,7 @@ def test_the_crop_network_keeps_the_best_epoch_or_the_last_as_asked(tiny_crop_mo
 
     _, crops, _ = tiny_crop_model
     network, history = train_crop_network(crops, crops, CropTrainSettings(epochs=3, batch=64, threads=1, keep=keep),
-                                          PoleCropNet(CROP_WH), log=lambda line: None)
+                                          PoleCropNet(TINY), log=lambda line: None)
     kept = history[-1] if keep == "last" else max(history, key=lambda epoch: epoch.score)
     assert validate(network, crops) == pytest.approx((kept.pole_recall, kept.false_pole_rate, kept.box_iou))
     with pytest.raises(ValueError, match="give best or last"):
@@ -151,10 +158,11 @@ def test_train_robot_prints_and_keeps_what_it_made(synth_dataset, tmp_path, caps
     from detector.robot_training import RobotTraining
 
     out = tmp_path / "robot"
-    assert main(["train-robot", str(synth_dataset), "--out", str(out), "--epochs", "1", "--threads", "1"]) == 0
+    assert main(["train-robot", str(synth_dataset), "--out", str(out), "--epochs", "1", "--threads", "1",
+                 "--weights", str(ROBOT_WEIGHTS)]) == 0
     lines = capsys.readouterr().out.splitlines()
     printed = RobotTraining.from_json(json.loads("\n".join(lines[lines.index("{"):])))
-    kept = json.loads((out / "history.json").read_text())
+    kept = read_record(out / "history.json", "robot training")
     assert RobotTraining.from_json({k: v for k, v in kept.items() if k != "history"}) == printed
     assert printed.epochs == len(kept["history"]) == 1 and printed.model == out / "poles-robot.onnx"
     assert isinstance(load_detector(printed.model), CropDetector) and 0 < printed.operating_conf < 1
@@ -212,14 +220,12 @@ def _machine_has_avx2() -> bool:
 
 @pytest.mark.skipif(not _machine_has_avx2(), reason="this CPU has no AVX2: an uncapped library looks capped here")
 @pytest.mark.parametrize("dropped", [None, "ONEDNN_MAX_CPU_ISA", "NPY_DISABLE_CPU_FEATURES", "OPENCV_CPU_DISABLE"])
-def test_the_robot_benchmark_refuses_to_time_when_a_cap_is_off(dropped):
-    sys.path.insert(0, str(REPOSITORY / "benchmarks"))
-    from bench_robot import worker_environment
+def test_the_robot_timing_refuses_to_time_when_a_cap_is_off(dropped):
+    from detector.speed import worker_environment
 
     env = worker_environment(capped=True)
     env.pop(dropped, None)
-    code = (f"import json, sys; sys.path.insert(0, {str(REPOSITORY / 'benchmarks')!r}); "
-            "from bench_robot import caps_in_force; print(json.dumps(caps_in_force()))")
+    code = "import json; from detector.speed import caps_in_force; print(json.dumps(caps_in_force()))"
     result = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     problems = json.loads(result.stdout.strip().splitlines()[-1])
     assert (problems == []) == (dropped is None), problems

@@ -7,6 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
+from detector.formats import read_record
 from detector.cli import main
 from detector.slam.comparison import BACKENDS, REFERENCE_ROW, BackendRow
 from detector.slam.sequences import FrontEndSpec, recorded_sequence
@@ -23,12 +24,12 @@ def test_slam_command_writes_metrics_map_path_plots_and_comparison(tmp_path, cap
     out = tmp_path / "slam"
     assert main(["slam", "--sim", "square", "--duration", "30", "--backend", "fej", "--lookalikes", "1",
                  "--compare", "2", "--out", str(out)]) == 0
-    metrics = json.loads((out / "metrics.json").read_text())
+    metrics = read_record(out / "metrics.json", "slam")
     for key in ("robot_error", "landmark_error"):
         assert set(metrics[key]) >= {"mean", "std", "rmse"}
     assert metrics["label"] == "FEJ-EKF + odometry scales + NN association + separation 0.5 m + gate 9.21 + min view 3"
     assert {"nees", "nis", "counts", "time_per_step_us", "phantoms", "landmarks_missing"} <= set(metrics)
-    rows = [BackendRow.from_json(row) for row in json.loads((out / "comparison.json").read_text())]
+    rows = [BackendRow.from_json(row) for row in read_record(out / "comparison.json", "slam comparison")["rows"]]
     assert [row.backend for row in rows] == [*BACKENDS, REFERENCE_ROW] and all(row.seeds == 2 for row in rows)
     reference = rows[-1]
     assert reference.landmark_error < rows[0].landmark_error and reference.phantoms == 0
@@ -40,7 +41,7 @@ def test_slam_command_writes_metrics_map_path_plots_and_comparison(tmp_path, cap
     for name in ("map.png", "errors.png"):
         assert cv2.imread(str(out / name)) is not None
     assert len((out / "path.csv").read_text().splitlines()) == 301 + 1
-    assert {name.split("#")[0] for name in json.loads((out / "map.json").read_text())} <= set(CLASSES)
+    assert {name.split("#")[0] for name in read_record(out / "map.json", "slam map")["landmarks"]} <= set(CLASSES)
     assert "back ends on sim square" in capsys.readouterr().out
 
 
@@ -49,9 +50,11 @@ def test_slam_command_writes_metrics_map_path_plots_and_comparison(tmp_path, cap
                                           (["--frames", "x"], "--frames needs --odometry"),
                                           (["--frames", "x", "--odometry", "o.csv", "--duration", "5"],
                                            "--duration is for --sim and --utias"),
-                                          (["--frame-rate", "3"], "give the camera's 5 Hz divided by a whole number")])
+                                          (["--frame-rate", "3"], "give the camera's 5 Hz divided by a whole number"),
+                                          (["--utias", "log", "--frontend", "shipped-robot"],
+                                           "a UTIAS log holds ranges and bearings already measured")])
 def test_slam_command_refuses_bad_settings(argv, message, tmp_path, capsys):
-    base = [] if "--frames" in argv else ["--sim", "square"]
+    base = [] if "--frames" in argv or "--utias" in argv else ["--sim", "square"]
     assert main(["slam", *base, *argv, "--out", str(tmp_path / "o")]) == 2
     assert message in capsys.readouterr().err
 
@@ -83,7 +86,7 @@ def test_a_slower_frame_rate_hands_the_filter_fewer_sightings_of_the_same_walk(t
     for rate in ("5", "1.25"):
         out = tmp_path / rate
         assert main(["slam", "--sim", "square", "--duration", "30", "--frame-rate", rate, "--out", str(out)]) == 0
-        metrics = json.loads((out / "metrics.json").read_text())
+        metrics = read_record(out / "metrics.json", "slam")
         counts[rate] = sum(metrics["counts"][key] for key in ("accepted", "rejected", "pending", "initialised"))
         odometry[rate] = metrics["odometry_error"]["mean"]
         assert metrics["sequence"] == f"sim square at {rate} frames/s"
@@ -91,11 +94,12 @@ def test_a_slower_frame_rate_hands_the_filter_fewer_sightings_of_the_same_walk(t
     assert 3 * counts["1.25"] < counts["5"] < 5 * counts["1.25"]  # about a quarter of the sightings
 
 
-def _recording(folder):
+def _recording(folder, colour=(60, 120, 40)):
+    """Three frames of a green floor (BGR ``colour``) and the odometry of the same seconds."""
     frames = folder / "frames"
     frames.mkdir()
     for t in (0.0, 0.5, 1.0):
-        cv2.imwrite(str(frames / f"{t}.jpg"), np.full((240, 320, 3), 90, np.uint8))
+        cv2.imwrite(str(frames / f"{t}.jpg"), np.full((240, 320, 3), colour, np.uint8))
     odometry = folder / "odometry.csv"
     odometry.write_text("t,x,y,theta\n0.0,0,0,0\n0.4,0.05,0,0\n0.8,0.1,0,0.02\n1.2,0.15,0,0.04\n")
     return frames, odometry
@@ -191,6 +195,14 @@ def test_a_recording_without_truth_reports_what_it_saw(tmp_path, capsys):
     assert "no truth to score against: 0 sightings accepted, 0 landmarks mapped; wrote" in capsys.readouterr().out
 
 
+def test_a_recording_of_greyscale_frames_is_refused_it_holds_no_colour_to_name_a_pole(tmp_path, capsys):
+    frames, odometry = _recording(tmp_path, colour=(90, 90, 90))
+    assert main(["slam", "--frames", str(frames), "--odometry", str(odometry), "--frontend", "shipped-robot",
+                 "--out", str(tmp_path / "out")]) == 2
+    assert "every frame is greyscale" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
 FIELD_MAP = "class,x,y\nbp,-4.675,3.175\ngp,0,3.175\nyp,4.675,3.175\npb,-4.675,-3.175\npg,0,-3.175\npy,4.675,-3.175\n"
 
 
@@ -201,16 +213,16 @@ def test_slam_with_a_map_localises_on_it_instead_of_building_one(tmp_path):
         (tmp_path / "field.csv").write_text(FIELD_MAP)
         out = tmp_path / name
         assert main(["slam", "--sim", "square", "--duration", "60", "--map", str(source), "--out", str(out)]) == 0
-        metrics = json.loads((out / "metrics.json").read_text())
+        metrics = read_record(out / "metrics.json", "slam")
         assert metrics["label"].startswith("EKF localisation on")
         assert "landmark_error" not in metrics and "phantoms" not in metrics
         assert metrics["robot_error"]["mean"] < 0.05 < 0.3 < metrics["odometry_error"]["mean"]  # here 0.019 / 0.416
-        assert json.loads((out / "map.json").read_text())["gp"] == [0.0, 3.175]
+        assert read_record(out / "map.json", "slam map")["landmarks"]["gp"] == [0.0, 3.175]
         paths[name] = (out / "path.csv").read_text()
     assert paths["true"] == paths["csv"]
     assert main(["slam", "--sim", "square", "--duration", "60", "--map", "true", "--eif",
                  "--out", str(tmp_path / "eif")]) == 0
-    assert json.loads((tmp_path / "eif" / "metrics.json").read_text())["label"] == "EIF localisation on the known map"
+    assert read_record(tmp_path / "eif" / "metrics.json", "slam")["label"] == "EIF localisation on the known map"
 
 
 def test_a_start_given_off_the_true_one_is_recovered_when_its_uncertainty_is_said(tmp_path):
@@ -223,7 +235,7 @@ def test_a_start_given_off_the_true_one_is_recovered_when_its_uncertainty_is_sai
                      "--start-std", std, "--out", str(out)]) == 0
         path = np.loadtxt(out / "path.csv", delimiter=",", skiprows=1)
         assert path[0, 1:4] == pytest.approx([-1.0, -1.4, 0.2], abs=0.05)
-        errors[std] = json.loads((out / "metrics.json").read_text())["robot_error"]["mean"]
+        errors[std] = read_record(out / "metrics.json", "slam")["robot_error"]["mean"]
     assert errors["0.2,0.2"] < 0.1 < 0.5 < errors["0.01,0.01"]  # here 0.059 and 1.6 m
 
 

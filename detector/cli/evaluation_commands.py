@@ -9,7 +9,6 @@ from detector.cli.arguments import add_dataset_argument, add_input_width_argumen
 from naoslam.shipped import DEFAULT_CONF
 
 
-
 def add_parsers(sub: argparse._SubParsersAction) -> None:
     """Add the `evaluate` and `predict` commands to ``sub`` (``run``: the function that runs it)."""
     evaluate = sub.add_parser("evaluate", help="precision, recall and mask IoU per image on held-out frames")
@@ -62,7 +61,10 @@ def _evaluate(args: argparse.Namespace) -> int:
     predictors = [make_predictor(model, args.imgsz, calibration) for model in models]  # every model checked first
     for predictor, label in zip(predictors, _column_labels(models, [p.name for p in predictors])):
         predictor.name = label
-    inputs = open_dataset(args.data, progress=False).input_folders() + existing(args.calibration, *map(Path, models))
+    dataset = open_dataset(args.data, progress=False)
+    if args.pose:
+        _say_poses(dataset, args.split)
+    inputs = dataset.input_folders() + existing(args.calibration, *map(Path, models))
     with output_folder(args.out, args.force, inputs, "evaluation") as folder:
         for predictor in predictors:
             out = folder / predictor.name if len(models) > 1 else folder
@@ -71,6 +73,18 @@ def _evaluate(args: argparse.Namespace) -> int:
     print_metrics(rows)
     print(f"wrote {args.out} (metrics.json, per_image.png, sweep.png, confusion.png, recall_by_width.png, errors/)")
     return 0
+
+
+def _say_poses(dataset, split: str) -> None:
+    """A note when ``--pose`` finds no camera pose, or not every frame's: those frames are searched whole."""
+    from detector.datasets.truth import load_camera_poses
+
+    frames = {sample.image.name for sample in dataset.split(split)}
+    posed = len(frames & set(load_camera_poses(dataset)))
+    if posed < len(frames):
+        which = "none" if not posed else f"{posed} of {len(frames)}"
+        print(f"note: --pose: {which} of the {split} frames record their camera pose (annotations.json, as `poles "
+              "synth` writes it); the others are searched whole, as without --pose")
 
 
 def _column_labels(models: list[str], names: list[str]) -> list[str]:

@@ -7,7 +7,6 @@ every pole; anything between is left out, so the network is never taught two ans
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -15,13 +14,13 @@ import cv2
 import numpy as np
 
 from detector.console import show_progress
-from detector.datasets.io import load_dataset
-from detector.datasets.model import Sample
+from detector.datasets.model import Dataset, Sample
+from detector.datasets.truth import load_camera_poses
 from naoslam.camera import CameraPose, PinholeCamera
 from naoslam.candidates import (WINDOW_ABOVE_JUNCTION, WINDOW_HEIGHT, CandidateFinder, cut_by_frame,
                                 window_around_box, window_at_junction)
 from naoslam.crops import Window, crop_window, to_crop
-from naoslam.ground import GroundView, ground_plane_problem
+from naoslam.ground import GroundView
 from naoslam.landmarks import CLASSES
 
 #: Class index of "no pole" (after the six landmarks).
@@ -93,15 +92,9 @@ def jittered(window: Window, rng: np.random.Generator) -> Window:
     return window_at_junction(centre, junction, band * float(np.exp(rng.normal(0.0, JITTER_SCALE))))
 
 
-def ground_view_of(entry: dict | None, frame_hw: tuple[int, int]) -> GroundView | None:
-    """The ground view of a frame whose annotations.json entry records the camera's pose (None without one)."""
-    camera = (entry or {}).get("camera")
-    if not camera:
-        return None
-    pose = CameraPose(z=camera["height_m"], pitch=camera["pitch_rad"], roll=camera["roll_rad"])
-    if ground_plane_problem(pose):
-        return None
-    return GroundView(PinholeCamera(frame_hw[1], frame_hw[0]), pose)
+def ground_view(pose: CameraPose | None, frame_hw: tuple[int, int]) -> GroundView | None:
+    """The ground view of a frame taken at the camera ``pose`` (None without one)."""
+    return GroundView(PinholeCamera(frame_hw[1], frame_hw[0]), pose) if pose is not None else None
 
 
 def label_boxes(sample: Sample, width: int, height: int) -> list[Window]:
@@ -153,29 +146,19 @@ def _distinct(candidates: list) -> list:
     return out
 
 
-def crops_of_dataset(root: Path, splits: tuple[str, ...], size_wh: tuple[int, int], seed: int = 0,
+def crops_of_dataset(dataset: Dataset, splits: tuple[str, ...], size_wh: tuple[int, int], seed: int = 0,
                      jitter: int = JITTERED_WINDOWS, progress: bool = True) -> CropSet:
-    """The training crops of every frame of ``splits`` of the dataset at ``root``; a frame's camera pose, where
-    ``annotations.json`` records it, limits the finder to the ground band as on the robot."""
-    dataset = load_dataset(root)
-    annotations = _annotations(Path(root))
+    """The training crops of every frame of ``splits`` of a dataset read through the intake; a frame's camera
+    pose, where ``annotations.json`` records it, limits the finder to the ground band as on the robot."""
+    poses = load_camera_poses(dataset)
     finder = CandidateFinder()
     samples = [s for split in splits for s in dataset.split(split)]
     sets = []
-    for index, sample in enumerate(show_progress(samples, f"cropping {Path(root).name}", "img", enabled=progress)):
-        frame = cv2.imread(str(sample.image))
-        view = ground_view_of(annotations.get(sample.image.name), frame.shape[:2])
+    for index, sample in enumerate(show_progress(samples, f"cropping {Path(dataset.root).name}", "img",
+                                                 enabled=progress)):
+        frame = cv2.imread(str(sample.image))  # the intake decoded each one; a truncated JPEG reads grey below
+        view = ground_view(poses.get(sample.image.name), frame.shape[:2])
         rng = np.random.default_rng([seed, index])
         sets.append(crops_of_frame(frame, sample, view, finder, size_wh, rng, jitter))
     return CropSet.concatenate(sets) if sets else \
         CropSet(np.zeros((0, size_wh[1], size_wh[0], 3), np.uint8), np.zeros(0, np.int64), np.zeros((0, 4), np.float32))
-
-
-def _annotations(root: Path) -> dict:
-    """``annotations.json``'s images (file name -> entry), empty when there is none or it is not ours."""
-    path = root / "annotations.json"
-    try:
-        images = json.loads(path.read_text()).get("images")
-    except (OSError, ValueError, AttributeError):
-        return {}
-    return images if isinstance(images, dict) else {}

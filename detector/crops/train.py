@@ -13,7 +13,7 @@ import torch
 from torch import nn
 
 from detector.atomic import atomic_path
-from detector.crops.network import PoleCropNet
+from detector.crops.network import CropArchitecture, PoleCropNet
 from detector.crops.samples import NO_POLE, CropSet
 from detector.crops.settings import CropTrainSettings
 from naoslam.landmarks import CLASSES
@@ -155,9 +155,8 @@ def train_crop_network(train: CropSet, valid: CropSet, settings: CropTrainSettin
 
 def save_checkpoint(network: PoleCropNet, path: Path, history: list[EpochResult], settings: CropTrainSettings) -> Path:
     """The network, its shape and how it was trained, as one torch file (written atomically)."""
-    checkpoint = {"kind": "pole-crops", "classes": list(CLASSES), "size_wh": list(network.size_wh),
-                  "channels": [layer[0].out_channels for layer in network.features],
-                  "hidden": network.head[1].out_features, "state": network.state_dict(),
+    checkpoint = {"kind": "pole-crops", "classes": list(CLASSES), **network.architecture.to_dict(),
+                  "state": network.state_dict(),
                   "settings": asdict(settings), "history": [asdict(h) for h in history]}
     with atomic_path(path) as tmp:
         torch.save(checkpoint, tmp)
@@ -166,6 +165,9 @@ def save_checkpoint(network: PoleCropNet, path: Path, history: list[EpochResult]
 
 def load_checkpoint(path: Path) -> PoleCropNet:
     """A crop network saved by :func:`save_checkpoint`; ValueError naming the file for anything else."""
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"{path}: no such checkpoint - pass a poles-robot.pt written by `poles train-robot` "
+                                "(or leave out --weights to train from scratch)")
     try:
         checkpoint = torch.load(str(path), map_location="cpu", weights_only=False)
     except Exception as error:  # pickle, zip and runtime errors of files that are not checkpoints
@@ -174,6 +176,6 @@ def load_checkpoint(path: Path) -> PoleCropNet:
     if not isinstance(checkpoint, dict) or checkpoint.get("kind") != "pole-crops":
         raise ValueError(f"{path}: not a crop network checkpoint - pass a poles-robot.pt written by "
                          "`poles train-robot`")
-    network = PoleCropNet(tuple(checkpoint["size_wh"]), tuple(checkpoint["channels"]), checkpoint["hidden"])
+    network = PoleCropNet(CropArchitecture.from_dict(checkpoint))
     network.load_state_dict(checkpoint["state"])
     return network.eval()

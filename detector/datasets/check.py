@@ -1,8 +1,8 @@
 """``poles check``: validate a dataset, summarise it, and write a cleaned copy on request."""
 from __future__ import annotations
-from detector.outputs import fresh_path
 
-import re
+import os
+import tempfile
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,10 +16,12 @@ from detector.console import make_console, show_progress
 from detector.datasets.io import DatasetWriter, load_dataset
 from detector.datasets.jpeg import truncated_jpeg
 from detector.datasets.labels import BOX_ONLY
-from detector.datasets.model import SPLITS, Dataset, DatasetError, Problem, Sample
+from detector.datasets.model import (CHECK_ADVICE, IMAGE_SUFFIXES, SPLITS, Dataset, DatasetError, Problem, Sample,
+                                     grouped_problems, is_root_cause)
 from detector.datasets.names import UNNAMED_CLASS_OUTLINES
 from detector.datasets.orientation import UPRIGHT, encoded_orientation
 from detector.atomic import write_text
+from detector.outputs import fresh_path
 from naoslam.landmarks import CLASSES
 
 
@@ -75,6 +77,11 @@ def _squeezed_frames(root: Path, shapes: set[tuple[int, int]]) -> Problem | None
                    "are square")
 
 
+#: The smallest image side a frame may have: a pole is a few pixels wide even far away, and a frame smaller than
+#: this is a thumbnail or a broken export.
+MIN_FRAME_SIDE = 16
+
+
 def _image_size(sample: Sample, problems: list[Problem]) -> tuple[int, int] | None:
     try:
         data = np.fromfile(sample.image, np.uint8)
@@ -87,6 +94,11 @@ def _image_size(sample: Sample, problems: list[Problem]) -> tuple[int, int] | No
         what = "JPEG is truncated (no end marker) and" if truncated else "image"
         problems.append(Problem("error", sample.image, None, f"{what} cannot be decoded (corrupt or not an image)",
                                 "re-export or delete the image and its label"))
+        return None
+    if min(image.shape[:2]) < MIN_FRAME_SIDE:
+        problems.append(Problem("error", sample.image, None, f"image is {image.shape[1]}x{image.shape[0]} px: too "
+                                f"small to show a pole (at least {MIN_FRAME_SIDE} px a side)",
+                                "re-export it at the camera's size, or delete it and its label"))
         return None
     if truncated:
         problems.append(Problem("warning", sample.image, None, "JPEG is truncated (no end marker); its bottom may be grey",
@@ -112,11 +124,9 @@ def print_report(report: CheckReport, console: Console | None = None, show_notes
     if report.dataset.samples:
         console.print(_split_table(report))
     shown = [p for p in report.problems if show_notes or p.severity != "note"]
-    kinds: dict[tuple[str, str], list[Problem]] = {}
-    for problem in shown:
-        kinds.setdefault((problem.severity, _kind(problem.message)), []).append(problem)
     left_out = 0
-    for (severity, _), problems in sorted(kinds.items(), key=lambda kv: (kv[0][0] != "error", -len(kv[1]))):
+    for problems in grouped_problems(shown):
+        severity = problems[0].severity
         style = "red" if severity == "error" else "yellow"
         console.print(f"[{style}]{len(problems)} x {severity}: {problems[0].message} - fix: {problems[0].fix}[/{style}]",
                       highlight=False, soft_wrap=True)
@@ -162,18 +172,27 @@ def _split_table(report: CheckReport) -> Table:
 
 def listing_path(dataset: Dataset, fixed_copy: Path | None = None) -> Path:
     """Where the whole list of problems goes: ``CLEAN.check.txt`` beside a ``--fix`` copy, else
-    ``check-<dataset>.txt`` in the working folder, or beside the dataset when run from inside it (never into it);
-    numbered (``check-<dataset>-2.txt``) where a file of that name is there already."""
+    ``check-<dataset>.txt`` in the working folder, or beside the dataset when run from inside it (never into it), or
+    in the system's temporary folder when that folder cannot be written; numbered (``check-<dataset>-2.txt``) where
+    a file of that name is there already."""
     if fixed_copy is not None:
         return Path(f"{fixed_copy}.check.txt")
     root, here = Path(dataset.root).resolve(), Path.cwd().resolve()
     inside = any(here == folder or folder in here.parents for folder in dataset.input_folders())
-    return (root.parent if inside else here) / f"check-{root.name}.txt"
+    folder = root.parent if inside else here
+    if not os.access(folder, os.W_OK):
+        folder = Path(tempfile.gettempdir())
+    return folder / f"check-{root.name}.txt"
 
 
-def _kind(message: str) -> str:
-    """What a problem is, without its particulars (quoted names, numbers)."""
-    return re.sub(r"'[^']*'|\"[^\"]*\"|-?\d+(\.\d+)?", "#", message)
+def refusal_advice(errors: list[Problem]) -> str:
+    """How a refused dataset's problems are all seen, and whether ``--fix`` would clear them: it drops broken label
+    lines and images that cannot be read, but cannot draw outlines for boxes, name classes or mend data.yaml."""
+    if any(is_root_cause(p) or BOX_ONLY in p.message or UNNAMED_CLASS_OUTLINES in p.message for p in errors):
+        return CHECK_ADVICE
+    if all(p.line is not None or Path(p.path).suffix.lower() in IMAGE_SUFFIXES for p in errors):
+        return f"{CHECK_ADVICE}; `poles check DATA --fix --out CLEAN` writes a copy without them"
+    return CHECK_ADVICE
 
 
 def write_fixed_copy(report: CheckReport, out: str | Path, force: bool = False) -> Path:
@@ -184,17 +203,17 @@ def write_fixed_copy(report: CheckReport, out: str | Path, force: bool = False) 
     not be read at all, or whose labels are boxes, is refused: a "cleaned" copy would hold images without poles.
     """
     if not report.dataset.samples:
-        raise DatasetError(report.errors)
+        raise DatasetError(report.errors, advice=None)
     boxes = [p for p in report.errors if BOX_ONLY in p.message]
     if boxes:
         raise DatasetError([boxes[0], Problem("error", report.dataset.root, None, f"--fix cannot turn {len(boxes)} "
-                                              "box label(s) into outlines", "re-export the dataset")])
+                                              "box label(s) into outlines", "re-export the dataset")], advice=None)
     unnamed = [p for p in report.errors if UNNAMED_CLASS_OUTLINES in p.message]
     if unnamed:  # dropping them would leave a copy that passes `check` and trains on fewer poles, or none
         raise DatasetError([*unnamed, Problem("error", report.dataset.root, None, f"--fix does not delete the "
                                               f"outlines of {len(unnamed)} class(es) that name no landmark",
                                               "rename them to pole codes with `poles convert --rename`, or delete "
-                                              "them in Roboflow, then check again")])
+                                              "them in Roboflow, then check again")], advice=None)
     seen: set[str] = set()
     with DatasetWriter(out, force=force, protect=report.dataset.input_folders()) as writer:
         for sample in report.dataset.samples:

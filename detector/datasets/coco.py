@@ -51,8 +51,9 @@ def _read_coco_split(split: str, json_path: Path, problems: list[Problem], renam
     if not isinstance(coco, dict) or not all(isinstance(coco.get(k, []), list) for k in ("images", "annotations", "categories")):
         error("not a COCO file (no `images`, `annotations` and `categories` lists)", "re-export as COCO segmentation")
         return []
-    categories = _categories(coco["categories"] if "categories" in coco else [], coco.get("annotations", []),
-                             json_path, problems, renames)
+    first_problem = len(problems)
+    named, codes = _categories(coco["categories"] if "categories" in coco else [], json_path, problems, renames)
+    categories = {c["id"]: code for c, code in zip(named, codes)}
     images: dict = {}
     for image in coco.get("images", []):
         if not isinstance(image, dict) or not isinstance(image.get("file_name"), str) or "id" not in image:
@@ -70,11 +71,15 @@ def _read_coco_split(split: str, json_path: Path, problems: list[Problem], renam
                   f"image_id {image_id!r} is not an image of this file", "re-export, or delete the annotation")
             continue
         by_image.setdefault(image_id, []).append(annotation)
-    samples = []
+    samples, outlines = [], Counter()
+    index_of = {c["id"]: index for index, c in enumerate(named)}
     for image_id, image in images.items():
         image_path = json_path.parent / image["file_name"]
         if image_path.suffix.lower() not in IMAGE_SUFFIXES or not image_path.is_file():
-            error(f"image {image['file_name']!r} is listed but missing", f"put it beside {json_path.name}")
+            elsewhere = _found_elsewhere(json_path, image["file_name"])
+            error(f"image {image['file_name']!r} is listed but missing beside it"
+                  + (f" (it is at {elsewhere})" if elsewhere else ""), f"put it beside {json_path.name}"
+                  + (" (Roboflow's COCO export keeps each split's images beside its JSON)" if elsewhere else ""))
             continue
         size = _image_size(image, image_path, json_path, problems)
         if size is None:
@@ -83,29 +88,44 @@ def _read_coco_split(split: str, json_path: Path, problems: list[Problem], renam
         instances = [inst for a in annotations if (inst := _instance(a, categories, size, json_path, found))]
         problems += found
         _, boxes = unread_entries(found)
+        outlines.update(index_of[a["category_id"]] for a in annotations
+                        if categories.get(a.get("category_id"), "") is None and _has_outline(a))
         samples.append(Sample(split, image_path, None, instances, len(annotations) - len(instances), boxes))
+    if None in codes:  # before the split's other problems: the --rename advice must lead them
+        problems[first_problem:first_problem] = unknown_class_problems(
+            json_path, [c["name"] for c in named], codes, outlines, [c["id"] for c in named], "category")
     return samples
 
 
-def _categories(raw: list, annotations: list, json_path: Path, problems: list[Problem],
-                renames: dict[str, str] | None) -> dict[int, str | None]:
-    """Category id -> landmark code (None: names no landmark). Roboflow's placeholder supercategory (id 0,
-    the project's name, which no annotation uses) is skipped; the rest go through ``class_codes`` and, where they
-    name no landmark, ``unknown_class_problems`` with the ``annotations`` that use them."""
+def _found_elsewhere(json_path: Path, file_name: str) -> Path | None:
+    """Where an image a COCO file lists but that is not beside it lies in the export (an ``images`` folder, another
+    split's folder), if anywhere."""
+    root = json_path.parent.parent
+    for folder in (json_path.parent / "images", *sorted(root.glob("*/")), *sorted(root.glob("*/images/"))):
+        if folder != json_path.parent and (folder / file_name).is_file():
+            return folder / file_name
+    return None
+
+
+def _has_outline(annotation: dict) -> bool:
+    """Whether an annotation carries a polygon (a box-only one has an empty ``segmentation``)."""
+    segmentation = annotation.get("segmentation")
+    return isinstance(segmentation, (list, dict)) and bool(segmentation)
+
+
+def _categories(raw: list, json_path: Path, problems: list[Problem],
+                renames: dict[str, str] | None) -> tuple[list[dict], tuple[str | None, ...]]:
+    """The categories in use and each one's landmark code (None: names no landmark). Roboflow's placeholder
+    supercategory (id 0, the project's name, which no annotation uses) is skipped; the rest go through
+    ``class_codes``."""
     used = [c for c in raw if isinstance(c, dict) and "id" in c and "name" in c]
     if len(used) != len(raw):
         problems.append(Problem("error", json_path, None, "a category has no `id` or `name`", "re-export the dataset"))
     placeholder = [c for c in used if c.get("supercategory") == "none" and c["id"] == 0 and len(used) > 1]
     named = [c for c in used if c not in placeholder]
-    raw_names = [c["name"] for c in named]
-    codes, found = class_codes(raw_names, json_path, renames)
+    codes, found = class_codes([c["name"] for c in named], json_path, renames)
     problems += found
-    if None in codes:
-        index_of = {c["id"]: index for index, c in enumerate(named)}
-        outlines = Counter(index_of[a["category_id"]] for a in annotations
-                           if isinstance(a, dict) and a.get("category_id") in index_of)
-        problems += unknown_class_problems(json_path, raw_names, codes, outlines)
-    return {c["id"]: code for c, code in zip(named, codes)}
+    return named, codes
 
 
 def _image_size(image: dict, image_path: Path, json_path: Path, problems: list[Problem]) -> np.ndarray | None:
@@ -141,17 +161,17 @@ def _instance(annotation: dict, categories: dict, size: np.ndarray, json_path: P
     if annotation.get("category_id") not in categories:
         return error(f"category_id {annotation.get('category_id')!r} is not a category of this file", "re-export")
     code = categories[annotation["category_id"]]
+    segmentation = annotation.get("segmentation")
+    if segmentation == [] or segmentation is None and "bbox" in annotation:
+        return error(f"a box without a polygon - {BOX_ONLY}", "export from Roboflow as COCO *instance segmentation*")
     if code is None:
         return None  # the category itself is reported once
-    segmentation = annotation.get("segmentation")
     if isinstance(segmentation, dict):
         return error("RLE mask, not polygons", "export with polygon segmentation (Roboflow's COCO export does)")
     if isinstance(segmentation, list) and segmentation and all(isinstance(v, (int, float)) for v in segmentation):
         segmentation = [segmentation]  # a flat list is one polygon
     if not isinstance(segmentation, list) or not all(isinstance(part, list) for part in segmentation):
         return error(f"segmentation {str(segmentation)[:40]} is not a list of polygons", "re-export the dataset")
-    if not segmentation:
-        return error(f"a box without a polygon - {BOX_ONLY}", "export from Roboflow as COCO *instance segmentation*")
     try:
         arrays = [np.asarray(part, np.float64) for part in segmentation]
     except (TypeError, ValueError):

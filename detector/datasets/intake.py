@@ -8,21 +8,26 @@ allowed). Ultralytics' ``labels.cache`` files land there, never in the user's da
 """
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
-from detector.datasets.check import check_dataset
+from detector.datasets.check import check_dataset, refusal_advice
 from detector.datasets.io import DatasetWriter
-from detector.datasets.model import Dataset, DatasetError, Problem
+from detector.datasets.model import Dataset, DatasetError, Problem, grouped_problems
 
 #: Splits Ultralytics needs to train (it validates every epoch).
 TRAINING_SPLITS = ("train", "valid")
 
 
 def open_dataset(path: str | Path, renames: dict[str, str] | None = None, progress: bool = True) -> Dataset:
-    """The dataset at ``path`` after every check (images decoded); ``DatasetError`` listing what blocks it."""
+    """The dataset at ``path`` after every check (images decoded); ``DatasetError`` listing what blocks it. What
+    does not block it (a truncated JPEG, a turned or square frame) is said on standard error, one line a kind."""
     report = check_dataset(path, progress=progress, renames=renames)
     if report.errors:
-        raise DatasetError(report.errors)
+        raise DatasetError(report.errors, refusal_advice(report.errors))
+    for group in grouped_problems([p for p in report.problems if p.severity == "warning"]):
+        more = f" (and {len(group) - 1} more like it)" if len(group) > 1 else ""
+        print(f"{group[0]}{more}", file=sys.stderr)
     return report.dataset
 
 

@@ -147,6 +147,14 @@ def _load_yolo(yaml_path: Path, renames: dict[str, str] | None) -> Dataset:
                                         f"the {split} split is empty", f"create {split}/images or fix the path"))
             continue
         samples += _read_split(split, images_dir, names, problems, unknown_uses)
+    beyond = sorted(i for i in unknown_uses if i >= len(names))
+    if beyond:  # first too: one short `names` list explains every line that uses the classes it leaves out
+        declared = f" (nc: {config['nc']})" if "nc" in config and config["nc"] != len(raw_names) else ""
+        problems.insert(0, Problem("error", yaml_path, None, f"`names` lists {len(raw_names)} class(es){declared} but "
+                                   f"{sum(unknown_uses[i] for i in beyond):,} label line(s) use class id(s) "
+                                   f"{', '.join(map(str, beyond[:5]))}{' ...' if len(beyond) > 5 else ''}",
+                                   "list every class of the export in `names`, in its class order (Roboflow's "
+                                   "data.yaml does), or delete those lines"))
     if None in names:  # first: the one line with the --rename advice must not sink under per-file problems
         problems[:0] = unknown_class_problems(yaml_path, raw_names, names, unknown_uses)
     problems += _duplicate_stems(samples)

@@ -23,7 +23,7 @@ def parse_label_file(path: Path, names: tuple[str | None, ...],
     """Read ``class x1 y1 x2 y2 ...`` lines; ``names[i]`` is the canonical code of class id i (None if unknown).
 
     Lines with errors are left out of the returned instances and reported instead; ``unknown_uses``, where given,
-    counts the lines of each class id that names no landmark.
+    counts the lines of each class id that names no landmark or lies beyond ``names``.
     """
     instances: list[Instance] = []
     problems: list[Problem] = []
@@ -57,6 +57,8 @@ def _parse_line(path: Path, number: int, tokens: list[str], names: tuple[str | N
         return error(f"4 numbers after the class: a bounding box (or a 2-point outline), not a polygon - {BOX_ONLY}",
                      "export the dataset from Roboflow as YOLOv8 *instance segmentation* (polygons)")
     if not math.isfinite(class_value) or class_value != int(class_value) or not 0 <= class_value < len(names):
+        if unknown_uses is not None and math.isfinite(class_value) and class_value == int(class_value) >= len(names):
+            unknown_uses[int(class_value)] += 1
         return error(f"class id {tokens[0]} out of range 0..{len(names) - 1}",
                      "use an index into `names` in data.yaml, or add the class there")
     cls = names[int(class_value)]

@@ -1,6 +1,7 @@
 """In-memory model of an annotated dataset and of the problems found while reading it."""
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -30,15 +31,57 @@ class Problem:
         return f"{where}: {self.severity}: {self.message} - fix: {self.fix}"
 
 
-class DatasetError(Exception):
-    """A dataset cannot be used as it is; the message lists every blocking problem."""
+#: Suffixes of the files that describe a whole dataset: a problem with one of them (no line) is a root cause.
+DESCRIPTION_SUFFIXES = {".yaml", ".yml", ".json"}
+#: Kinds of problem a refusal names before it points to ``poles check`` for the rest.
+SHOWN_KINDS = 6
+#: What a refusal ends with by default: where to see every problem.
+CHECK_ADVICE = "`poles check DATA` lists every problem with its file, line and fix"
 
-    def __init__(self, problems: list[Problem]):
+
+def problem_kind(problem: Problem) -> tuple[str, str]:
+    """What a problem is, without its particulars (quoted names, numbers): its severity and message's shape."""
+    return problem.severity, re.sub(r"'[^']*'|\"[^\"]*\"|-?\d+(\.\d+)?", "#", problem.message)
+
+
+def is_root_cause(problem: Problem) -> bool:
+    """Whether a problem concerns the dataset as a whole: its data.yaml, COCO file or folder, not one line or image
+    (a COCO file's problems with one annotation are per entry)."""
+    whole_file = Path(problem.path).suffix.lower() in DESCRIPTION_SUFFIXES or not Path(problem.path).suffix
+    return problem.line is None and whole_file and not problem.message.startswith("annotation ")
+
+
+def grouped_problems(problems: list[Problem]) -> list[list[Problem]]:
+    """Problems grouped by kind, root causes first: errors before warnings before notes; within each, the kinds
+    that concern the whole dataset in the order they were found (a reader finds the cause before its effects), then
+    the rest, largest first."""
+    groups: dict[tuple[str, str], list[Problem]] = {}
+    for problem in problems:
+        groups.setdefault(problem_kind(problem), []).append(problem)
+    severity_order = {"error": 0, "warning": 1, "note": 2}
+    return sorted(groups.values(), key=lambda group: (severity_order[group[0].severity], not is_root_cause(group[0]),
+                                                      0 if is_root_cause(group[0]) else -len(group)))
+
+
+class DatasetError(Exception):
+    """A dataset cannot be used as it is. The message's first line is the root cause and its fix; the other kinds
+    of problem follow, one line each with a count and an example; ``advice`` ends it (None: nothing more to say)."""
+
+    def __init__(self, problems: list[Problem], advice: str | None = CHECK_ADVICE):
         self.problems = problems
-        shown = "\n".join(f"  {p}" for p in problems[:20])
-        more = f"\n  ... and {len(problems) - 20} more" if len(problems) > 20 else ""
-        super().__init__(f"{len(problems)} problem(s) in the dataset:\n{shown}{more}\n"
-                         "Run `poles check DATA` for the full report, or `poles check DATA --fix --out CLEAN`.")
+        groups = grouped_problems(problems)
+        lines = [str(groups[0][0]) if groups else "the dataset cannot be used"]
+        for index, group in enumerate(groups[:SHOWN_KINDS]):
+            rest = group[1:] if index == 0 else group
+            if rest:
+                lead = f"{len(rest):,} more like it" if index == 0 else f"{len(rest):,} x"
+                lines.append(f"  {lead}: {rest[0]}")
+        if len(groups) > SHOWN_KINDS:
+            lines.append(f"  and {sum(len(g) for g in groups[SHOWN_KINDS:]):,} problem(s) of "
+                         f"{len(groups) - SHOWN_KINDS} other kind(s)")
+        if advice and not (len(problems) == 1 and advice == CHECK_ADVICE):  # one problem: nothing more to list
+            lines.append(advice)
+        super().__init__("\n".join(lines))
 
 
 #: What a command raises for input it cannot use: one line for the user, never a traceback.

@@ -71,21 +71,24 @@ def class_codes(raw_names: list, source: Path, renames: dict[str, str] | None = 
 UNNAMED_CLASS_OUTLINES = "names no landmark and labels"
 
 
-def unknown_class_problems(source: Path, raw_names: list, codes: tuple[str | None, ...],
-                           outlines: Counter) -> list[Problem]:
+def unknown_class_problems(source: Path, raw_names: list, codes: tuple[str | None, ...], outlines: Counter,
+                           ids: list | None = None, noun: str = "class") -> list[Problem]:
     """The one rule for a declared class that names no landmark: an error where outlines are labelled with it (they
     cannot be read as any pole), a note where none is (ignored: Roboflow lists every class of a project, and a
-    rename to a pole's code would clash with that pole's own class). ``outlines`` counts them by class index."""
+    rename to a pole's code would clash with that pole's own class). ``outlines`` counts them by class index;
+    ``ids`` and ``noun`` name each class as its file does (a COCO category's own id, not its index)."""
     problems = []
     for index, (given, code) in enumerate(zip(raw_names, codes)):
         if code is not None:
             continue
+        name = f"{noun} {ids[index] if ids is not None else index} {str(given)!r}"
         if outlines[index]:
-            problems.append(Problem("error", source, None, f"class {index} {str(given)!r} {UNNAMED_CLASS_OUTLINES} "
-                                    f"{outlines[index]} outline(s)", "if it is a pole class, read it as one: "
-                                    f"`poles convert DATA --out NEW --rename '{given}=CODE'` with CODE one of "
-                                    f"{' '.join(CLASSES)} (bands top first); if not, delete its outlines"))
+            problems.append(Problem("error", source, None, f"{name} {UNNAMED_CLASS_OUTLINES} {outlines[index]} "
+                                    "outline(s)", f"if it is a pole class, read it as one: add `--rename "
+                                    f"'{given}=CODE'` to `poles finetune`, or write a renamed copy with `poles "
+                                    f"convert DATA --out NEW --rename '{given}=CODE'`, CODE one of {' '.join(CLASSES)} "
+                                    "(bands top first); if not, delete its outlines"))
         else:
-            problems.append(Problem("note", source, None, f"class {index} {str(given)!r} names no landmark and "
-                                    "labels no outline: ignored", "nothing to do"))
+            problems.append(Problem("note", source, None, f"{name} names no landmark and labels no outline: ignored",
+                                    "nothing to do"))
     return problems

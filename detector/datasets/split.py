@@ -11,6 +11,7 @@ from detector.datasets.intake import open_dataset
 from detector.datasets.io import DatasetWriter, SplitCounts
 from detector.datasets.model import Sample
 from detector.datasets.truth import read_annotations
+from detector.formats import STAMP_KEYS, stamped
 
 #: The order of ``--ratios``: train, test, valid (as the thesis lists them).
 RATIO_ORDER = ("train", "test", "valid")
@@ -72,5 +73,6 @@ def split_dataset(data: str | Path, out: str | Path, ratios: tuple[float, float,
             if isinstance(entry, dict):
                 entry["split"] = split
         if annotations is not None:
-            writer.write_json("annotations.json", annotations)
+            unstamped = {key: value for key, value in annotations.items() if key not in STAMP_KEYS}
+            writer.write_json("annotations.json", stamped("annotations", unstamped))
     return writer.frames

@@ -20,6 +20,8 @@ COUNT_COLOURS = {"tp": "#2ca02c", "fp": "#d62728", "fn": "#ff7f0e", "tn": "#1f77
 TP_BGR, FP_BGR, FN_BGR = (255, 160, 0), (0, 0, 255), (0, 220, 255)
 #: Up to this many images, the per-image bars are labelled with the images' names.
 MAX_NAMED_IMAGES = 40
+#: Characters of an image's name shown under its bar (Roboflow's names run to 60 and more, taller than the figure).
+NAME_CHARACTERS = 24
 
 
 def plot_per_image(per_image: tuple[FrameCounts, ...], png: Path, title: str) -> Path:
@@ -32,7 +34,7 @@ def plot_per_image(per_image: tuple[FrameCounts, ...], png: Path, title: str) ->
         ax.bar(x, values, bottom=bottom, color=colour, label=key.upper(), width=0.9)
         bottom += values
     if len(per_image) <= MAX_NAMED_IMAGES:
-        ax.set_xticks(x, [Path(row.image).stem for row in per_image], rotation=90, fontsize=7)
+        ax.set_xticks(x, [_short_name(Path(row.image).stem) for row in per_image], rotation=90, fontsize=7)
     ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_ylim(0, bottom.max(initial=0) + 1)  # headroom for the legend
     ax.set_xlabel("image")
@@ -40,6 +42,14 @@ def plot_per_image(per_image: tuple[FrameCounts, ...], png: Path, title: str) ->
     ax.set_title(f"{title}: per-image counts")
     ax.legend(ncol=4, fontsize=8)
     return save_figure(fig, png)
+
+
+def _short_name(stem: str) -> str:
+    """An image's name cut to ``NAME_CHARACTERS``: its start and its end, which tell Roboflow's names apart."""
+    if len(stem) <= NAME_CHARACTERS:
+        return stem
+    half = (NAME_CHARACTERS - 1) // 2
+    return f"{stem[:half]}…{stem[-half:]}"
 
 
 def plot_sweep(sweep: tuple[SweepPoint, ...], png: Path, title: str) -> Path:

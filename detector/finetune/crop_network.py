@@ -17,6 +17,7 @@ from detector.crops.export import export_crop_network
 from detector.crops.samples import NO_POLE, crops_of_dataset
 from detector.crops.settings import CropTrainSettings
 from detector.crops.train import load_checkpoint, save_checkpoint, train_crop_network
+from detector.datasets.io import load_dataset
 from detector.evaluation.predictors import RuntimePredictor, Predictor
 from detector.finetune.results import ExportedModel
 from detector.model_files import ROBOT_WEIGHTS, add_metadata, read_info
@@ -32,8 +33,9 @@ def train(data: Path, run: Path, weights: Path, epochs: int, minutes: float, lea
     """Fine-tune the crop network at ``weights`` on ``data``'s train frames into ``run``/poles-robot.pt: the last
     epoch's weights, as for the accurate model (a team's valid split is too small to pick an epoch on)."""
     start = load_checkpoint(weights)
-    train_crops = crops_of_dataset(data, ("train",), start.size_wh, seed=seed)
-    valid_crops = crops_of_dataset(data, ("valid",), start.size_wh, seed=seed + 1)
+    dataset = load_dataset(data)
+    train_crops = crops_of_dataset(dataset, ("train",), start.size_wh, seed=seed)
+    valid_crops = crops_of_dataset(dataset, ("valid",), start.size_wh, seed=seed + 1)
     if not (valid_crops.classes != NO_POLE).any():
         valid_crops = train_crops  # a valid split without a pole: each epoch reports on the train crops
     settings = CropTrainSettings(epochs=epochs, learning_rate=learning_rate, seed=seed, minutes=minutes,

@@ -29,18 +29,21 @@ class FrontEndSpec:
     (``shipped``, ``shipped-robot``, ``colour-filter``, an ONNX path) and a calibration; ``measurer`` builds it.
 
     ``min_confidence`` None uses the model's own operating threshold, else the thesis's 0.85. ``input_width`` runs
-    a ``--dynamic`` model at that input width (None: its own).
+    a ``--dynamic`` model at that input width (None: its own). ``maybe_confidence``: detections from it up to the
+    threshold go to the filter as tentative sightings (None: none).
     """
 
     model: str
     calibration: RangeCalibration | None = None
     min_confidence: float | None = None
     input_width: int | None = None
+    maybe_confidence: float | None = None
 
     def measurer(self):
         """naoslam's ``FrontEnd`` for this model: a function (frame, camera_pose=None) -> measurements; with a pose,
         the ground-plane gate and the foot-row range are used (model front ends only)."""
-        return FrontEnd(self.model, self.calibration, self.min_confidence, self.input_width)
+        return FrontEnd(self.model, self.calibration, self.min_confidence, self.input_width,
+                        maybe_confidence=self.maybe_confidence)
 
 
 def sim_sequence(config: SimConfig, front_end: FrontEndSpec | None = None, progress: bool = True,
@@ -113,13 +116,22 @@ def recorded_sequence(frames_dir: Path, odometry_csv: Path, front_end: FrontEndS
         stamped.append((t, path))
     require_decodable([path for _, path in stamped])
     measure = front_end.measurer()
-    frames = []
+    frames, grey = [], 0
     for t, path in show_progress(sorted(stamped), f"through {Path(front_end.model).name}", "frame", enabled=progress):
         image = cv2.imread(str(path))
+        grey += is_greyscale(image)
         pose = poses[int(np.argmin(np.abs(times - t - time_offset_s)))] if poses and camera_pose else None
         frames.append(Event(t, measurements=measure(image, pose)))
+    if grey == len(frames):
+        raise ValueError(f"{frames_dir}: every frame is greyscale - a pole's class is the colour of its bands, so no "
+                         "front end can find or name one: record the camera's colour frames")
     events = merge_frames(controls, frames, time_offset_s)
     return Sequence(events, np.array(rows[0][1:]), OdometryModel(), {}, f"recording {Path(frames_dir).name}")
+
+
+def is_greyscale(image: np.ndarray) -> bool:
+    """Whether a BGR frame holds no colour (its three channels equal, as a greyscale file decodes)."""
+    return bool((image[..., 0] == image[..., 1]).all() and (image[..., 1] == image[..., 2]).all())
 
 
 def _odometry_rows(odometry_csv: Path) -> tuple[list[list[float]], list[CameraPose | None] | None]:

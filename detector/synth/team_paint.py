@@ -52,6 +52,10 @@ class TeamPaint(JsonRecord):
         return colorsys.rgb_to_hsv(*self.letters[letter])[0] * 360.0
 
 
+class NoPaintMeasured(ValueError):
+    """An export none of whose poles is large enough to measure (or that labels none)."""
+
+
 def measure_team_paint(export: str | Path, splits: tuple[str, ...] = ("train", "valid"),
                        geometry: PoleGeometry = PoleGeometry()) -> TeamPaint:
     """Measure the band paint of every annotated pole in ``export``'s ``splits`` (the held-out test split is never
@@ -75,8 +79,8 @@ def measure_team_paint(export: str | Path, splits: tuple[str, ...] = ("train", "
                 bands[letter].append(paint[part])
                 per_class.setdefault(instance.cls, {}).setdefault(part, []).append(paint[part])
     if not poles:
-        raise ValueError(f"{export}: no annotated pole is large enough to measure its paint (each band needs "
-                         f"{MIN_PART_PIXELS} pixels) - annotate nearer poles, or leave out --paint-from")
+        raise NoPaintMeasured(f"{export}: no annotated pole is large enough to measure its paint (each band needs "
+                              f"{MIN_PART_PIXELS} pixels) - annotate nearer poles, or leave out --paint-from")
     letters = {letter: _median_rgb(values) if values else BAND_RGB[letter] for letter, values in bands.items()}
     classes = {cls: {part: _median_rgb(values) for part, values in parts.items()}
                for cls, parts in sorted(per_class.items())}
