@@ -17,6 +17,7 @@ from detector.datasets.model import Instance, Sample
 from detector.parallel import default_workers, ordered_map
 from detector.preview import contact_sheet, draw_instances
 from detector.records import JsonRecord
+from detector.formats import stamped
 
 #: Originals shown in ``augment_preview.png``, each beside at most ``PREVIEW_COPIES`` of its copies.
 PREVIEW_ORIGINALS, PREVIEW_COPIES = 4, 3
@@ -72,6 +73,11 @@ def _augment_sample(task: _Task) -> list[_Copy]:
     return copies
 
 
+def augment_once(sample: Sample, seed: int = 0, config: AugmentConfig = AugmentConfig()) -> bytes:
+    """One augmented copy of a training frame, encoded as ``augment_dataset`` writes each (what one costs)."""
+    return _augment_sample(_Task(sample, 0, 1, seed, config))[0].jpeg
+
+
 def augment_dataset(data: str | Path, out: str | Path, *, copies: int = THESIS_COPIES, seed: int = 0,
                     config: AugmentConfig = AugmentConfig(), preview: bool = False, force: bool = False,
                     workers: int | None = None, progress: bool = True) -> AugmentSummary:
@@ -107,7 +113,7 @@ def augment_dataset(data: str | Path, out: str | Path, *, copies: int = THESIS_C
         sheet = writer.out / "augment_preview.png" if preview and tiles else None
         summary = AugmentSummary(copies, seed, config, len(train), writer.counts["train"], into, kept, dropped,
                                  dict(operations), sheet)
-        writer.write_json("augment.json", summary.to_json())
+        writer.write_json("augment.json", stamped("augment", summary.to_json()))
     if sheet is not None:
         contact_sheet(tiles, sheet, columns=preview_columns)
     return summary

@@ -32,45 +32,14 @@ import time
 import numpy as np
 
 os.environ.setdefault("YOLO_OFFLINE", "true")
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from detector import speed  # noqa: E402  (the repository on the path first)
 
-#: The Atom's instruction set, for each library that dispatches on it.
-CAPS = {"ONEDNN_MAX_CPU_ISA": "SSE41", "NPY_DISABLE_CPU_FEATURES": "X86_V3 X86_V4 AVX512_ICL AVX512_SPR",
-        "OPENCV_CPU_DISABLE": "AVX,AVX2,FP16,FMA3,AVX512F,AVX512-SKX"}
-#: OpenCV's ids of the features the cap must switch off (``cv::CpuFeatures``): AVX, AVX2, FMA3, AVX-512F, AVX512-SKX.
-OPENCV_ABOVE_ATOM = {"AVX": 10, "AVX2": 11, "FMA3": 12, "AVX_512F": 13, "AVX512_SKX": 256}
-#: The Atom estimate's range: capped time on this machine times these (see the module's docstring).
-ATOM_FACTORS = (7.0, 10.0)
 #: (label, model) of each front end, the shipped robot model first.
 MODELS = [("robot, two-stage", "shipped-robot"), ("accurate INT8", "shipped-int8")]
 ENGINES = ("openvino", "onnxruntime")
 CAMERA_FPS = 30.0
 CAMERA_SECONDS = 20.0
-
-
-def caps_in_force() -> list[str]:
-    """What of the Atom cap is not in force in this process (empty when all of it is)."""
-    import cv2
-    from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
-
-    problems = [f"numpy dispatches {target}" for target in __cpu_dispatch__ if __cpu_features__.get(target)]
-    problems += [f"OpenCV uses {name}" for name, feature in OPENCV_ABOVE_ATOM.items()
-                 if cv2.checkHardwareSupport(feature)]
-    if os.environ.get("ONEDNN_MAX_CPU_ISA") != CAPS["ONEDNN_MAX_CPU_ISA"]:
-        problems.append("oneDNN (OpenVINO) is not capped: ONEDNN_MAX_CPU_ISA is not SSE41")
-    return problems
-
-
-def median_ms(run, items, repeats: int) -> float:
-    """Median ms of ``run(item)`` over ``repeats`` passes over ``items`` (one warm-up pass first)."""
-    for item in items:
-        run(item)
-    times = []
-    for _ in range(repeats):
-        for item in items:
-            start = time.perf_counter()
-            run(item)
-            times.append(time.perf_counter() - start)
-    return 1000 * float(np.median(times))
 
 
 def measure(models: list[tuple[str, str]], count: int, repeats: int) -> dict:
@@ -93,13 +62,13 @@ def measure(models: list[tuple[str, str]], count: int, repeats: int) -> dict:
             except Exception as error:  # an operator with no primitive at this instruction set, a missing model
                 results[f"{key}|pose"] = f"does not run: {str(error).splitlines()[0][:80]}"
                 continue
-            results[f"{key}|pose"] = median_ms(lambda i: front_end(frames[i], poses[i]), range(count), repeats)
-            results[f"{key}|no pose"] = median_ms(lambda i: front_end(frames[i]), range(count), repeats)
+            results[f"{key}|pose"] = speed.median_ms(lambda i: front_end(frames[i], poses[i]), range(count), repeats)
+            results[f"{key}|no pose"] = speed.median_ms(lambda i: front_end(frames[i]), range(count), repeats)
             finder = getattr(front_end.detector, "finder", None)
             if finder is not None:
                 views = [front_end.detector.ground_view(f.shape[:2], p) for f, p in zip(frames, poses)]
                 results[f"{key}|candidates"] = float(np.mean([len(finder(f, v)) for f, v in zip(frames, views)]))
-    results["colour filter|opencv|no pose"] = median_ms(ColourFilter(), frames, repeats)
+    results["colour filter|opencv|no pose"] = speed.median_ms(ColourFilter(), frames, repeats)
     return results
 
 
@@ -130,25 +99,17 @@ def camera_rate(model: str, engine: str) -> dict:
     return {"processed_fps": processed / CAMERA_SECONDS, "dropped": total - processed, "frames": total}
 
 
-def worker_environment(capped: bool) -> dict[str, str]:
-    """One thread everywhere; the Atom cap on every library, or none of it."""
-    env = {key: value for key, value in os.environ.items() if key not in CAPS}
-    env.update({"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", **(CAPS if capped else {})})
-    return env
-
-
 def run_worker(capped: bool, task: dict) -> dict:
     """``task`` in a fresh process (the caps must be set before the libraries load); a capped worker refuses to run
     when a cap is not in force."""
-    out = subprocess.run([sys.executable, __file__, "--worker", json.dumps({**task, "capped": capped})],
-                         env=worker_environment(capped), capture_output=True, text=True)
-    if out.returncode:
-        raise SystemExit(f"worker failed:\n{out.stderr[-2000:]}")
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    try:
+        return speed.run_worker([sys.executable, __file__, "--worker"], capped, task)
+    except RuntimeError as failure:
+        raise SystemExit(str(failure)) from None
 
 
 def worker(task: dict) -> dict:
-    if task["capped"] and (problems := caps_in_force()):
+    if task["capped"] and (problems := speed.caps_in_force()):
         raise SystemExit("the Atom cap is not in force: " + "; ".join(problems))
     if "camera" in task:
         return camera_rate(*task["camera"])
@@ -161,7 +122,7 @@ def cell(value, atom: bool = False) -> str:
     if value is None:
         return "-"
     if atom:
-        low, high = (value * factor for factor in ATOM_FACTORS)
+        low, high = (value * factor for factor in speed.ATOM_FACTORS)
         return f"{low:.0f}-{high:.0f}"
     return f"{value:.2f}"
 

@@ -17,7 +17,7 @@ from collections import defaultdict
 
 import numpy as np
 
-from bench_robot import CAP
+from detector.speed import CAPS
 
 
 def profile(model: str, input_hw: tuple[int, int], top: int, repeats: int = 30) -> None:
@@ -69,7 +69,7 @@ def main(argv: list[str]) -> None:
     if args.worker:
         profile(args.model, tuple(args.hw), args.top)
         return
-    env = {**os.environ, "OMP_NUM_THREADS": "1", **({} if args.uncapped else CAP)}
+    env = {**os.environ, "OMP_NUM_THREADS": "1", **({} if args.uncapped else CAPS)}
     if args.uncapped:
         env.pop("ONEDNN_MAX_CPU_ISA", None)
     # The cap must be in the environment before OpenVINO loads: a fresh process.

@@ -12,7 +12,7 @@ from calibration.fit import MIN_NOISE_SIGHTINGS, WALK_RELATIVE_STD, calibrate
 from calibration.report import CalibrationReport
 from calibration.samples import MEASURE_CONF, SizeSample, as_arrays, measure_samples, measures_law, open_ranged
 from detector.outputs import check_output_file
-from detector.atomic import write_json
+from detector.formats import write_record
 from detector.console import make_console
 from detector.figures import log_log, plt, save_figure
 from detector.model_files import add_metadata, read_info
@@ -73,7 +73,7 @@ def run_calibration(data: Path, out: Path, model: Path | None = None, truth_csv:
     result = CalibrationResult(calibration, report.with_sources(source, noise_source), plot)
     for target in embed:
         embed_calibration(target, calibration)
-    write_json(out, {"calibration": calibration.to_dict(), "report": result.report.to_json()})
+    write_record(out, "calibration", {"calibration": calibration.to_dict(), "report": result.report.to_json()})
     if plot:
         plot_fit(samples, calibration, plot, walk)
     return result

@@ -12,6 +12,7 @@ import numpy as np
 import onnx
 
 from detector.atomic import atomic_path
+from detector.formats import read_record
 from naoslam.detections import Detection
 from naoslam.measurement import RangeCalibration
 from naoslam.model_info import METADATA_KEY, ModelInfo
@@ -34,10 +35,10 @@ def load_calibration(path: Path) -> RangeCalibration:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such calibration file - write one with `poles calibrate`")
+    data = read_record(path, "calibration")
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
         return RangeCalibration.from_dict(data.get("calibration", data))
-    except (ValueError, AttributeError, KeyError, TypeError) as error:  # ValueError: JSON, UTF-8, the laws' checks
+    except (ValueError, AttributeError, KeyError, TypeError) as error:  # ValueError: the laws' checks
         raise ValueError(f"{path}: not a calibration written by `poles calibrate` ({type(error).__name__}: {error}) "
                          "- write one with `poles calibrate`") from None
 

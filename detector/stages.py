@@ -14,7 +14,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
 
-from detector.atomic import write_json
+from detector.formats import read_record, write_record
 from detector.datasets.model import BAD_INPUT_ERRORS
 from detector.records import JsonRecord, RecordMismatch
 
@@ -61,7 +61,7 @@ class StageLedger:
         self.announce = announce
         self.records: dict[str, StageRecord] = {}
         if self.path.is_file():
-            for name, data in json.loads(self.path.read_text()).items():
+            for name, data in read_record(self.path, "stages").items():
                 self.records[name] = StageRecord(**{**data, "ran": False})
         self.order: list[str] = []
 
@@ -122,7 +122,7 @@ class StageLedger:
 
     def _save(self) -> None:
         data = {name: {k: v for k, v in asdict(r).items() if k != "ran"} for name, r in self.records.items()}
-        write_json(self.path, data)
+        write_record(self.path, "stages", data)
 
     def timings(self) -> list[StageRecord]:
         """Records of this run's stages, in order."""

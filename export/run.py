@@ -16,7 +16,8 @@ from detector.model_files import read_checkpoint, ultralytics_predict
 from export.onnx_export import NAO_INPUT_HW, export_onnx, int8_path
 from export.quantize import quantize_int8
 from export.verify import FP32_TOLERANCE, INT8_TOLERANCE, Agreement, compare, frontend_predict, median_latency_ms
-from detector.atomic import atomic_path, write_json
+from detector.atomic import atomic_path
+from detector.formats import write_record
 from detector.records import JsonRecord
 from naoslam.detector import valid_confidence
 from naoslam.shipped import DEFAULT_CONF
@@ -184,7 +185,7 @@ def run_export(job: ExportJob) -> ExportReport:
         report = ExportReport(job.weights, job.out, input_hw, job.dynamic, checked_hw, len(frames), job.conf,
                               agreement, fp32_problems, latency, _recommend(latency, int8.get("int8_problems")),
                               **int8)
-        write_json(job.report_path, report.to_json())
+        write_record(job.report_path, "export report", report.to_json())
     return report
 
 

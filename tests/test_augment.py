@@ -10,6 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
+from detector.formats import read_record
 from augment.config import OPERATIONS, AugmentConfig
 from augment.pipeline import augment_copy
 from augment.run import augment_dataset
@@ -142,7 +143,7 @@ def test_dataset_counts_untouched_splits_and_input(synth_dataset, tmp_path):
     for split in ("valid", "test"):
         assert _tree_digest(tmp_path / "aug", split) == _tree_digest(synth_dataset, split)
     assert summary.instances_kept + summary.instances_dropped == summary.instances_into_copies
-    assert summary == type(summary).from_json(json.loads((tmp_path / "aug" / "augment.json").read_text()))
+    assert summary == type(summary).from_json(read_record(tmp_path / "aug" / "augment.json", "augment"))
     preview = cv2.imread(str(tmp_path / "aug" / "augment_preview.png"))
     assert preview.shape[1] == 4 * 320  # each original beside its three copies
     assert augmented.errors == []

@@ -8,9 +8,10 @@ from pathlib import Path
 
 import pytest
 
+from detector.formats import read_record
 from detector.demo.budget import Budget
 from detector.demo.pipeline import run_demo
-from detector.demo.results import CheckSummary, DemoEvaluation, EvaluatedFrontEnd
+from detector.demo.results import CheckSummary, DemoEvaluation, DemoSlam, DemoSpeed, EvaluatedFrontEnd
 from detector.records import JsonRecord
 from detector.stages import StageFailed, StageLedger, stage_key
 from detector.training.summary import TrainingSummary
@@ -61,7 +62,7 @@ def test_ledger_records_a_failure_and_keeps_earlier_stages(tmp_path):
     ledger.run("first", "k1", [], lambda: CheckSummary(0, 0), CheckSummary)
     with pytest.raises(StageFailed, match=r"stage 'second' failed: no frames"):
         ledger.run("second", "k2", [], lambda: (_ for _ in ()).throw(ValueError("no frames")), CheckSummary)
-    saved = json.loads((tmp_path / "stages.json").read_text())
+    saved = read_record(tmp_path / "stages.json", "stages")
     assert saved["first"]["status"] == "done" and saved["second"]["status"] == "failed"
     assert "no frames" in saved["second"]["error"]
 
@@ -69,9 +70,9 @@ def test_ledger_records_a_failure_and_keeps_earlier_stages(tmp_path):
 def test_demo_runs_every_stage_writes_the_report_and_resumes(tmp_path, monkeypatch):
     out = tmp_path / "demo"
     assert run_demo(out, TINY) == 0
-    stages = json.loads((out / "stages.json").read_text())
+    stages = read_record(out / "stages.json", "stages")
     assert list(stages) == ["data", "check", "augment", "train yolov8n-seg", "export yolov8n-seg", "calibrate",
-                            "evaluate", "slam"]
+                            "evaluate", "slam", "speed"]
     assert all(s["status"] == "done" for s in stages.values())
     # Two validation frames are too few poles to choose a threshold on: the shipped model's own stays.
     evaluated = DemoEvaluation.from_json(stages["evaluate"]["summary"])
@@ -79,18 +80,33 @@ def test_demo_runs_every_stage_writes_the_report_and_resumes(tmp_path, monkeypat
     assert evaluated.conf == LandmarkDetector().stored_conf
     page = (out / "report.html").read_text()
     for heading in ("Stages and time taken", "Dataset and augmentation", "Training", "Export and agreement",
-                    "Range calibration", "Evaluation on held-out frames", "EKF SLAM on a simulated walk"):
+                    "Range calibration", "Evaluation on held-out frames", "EKF SLAM on a simulated walk",
+                    "Speed on the robot"):
         assert heading in page
     assert "A square walk of 8 seconds" in page  # the walk it ran
     assert len(re.findall(r'src="data:image/(?:png|jpeg);base64,', page)) >= 10
     assert "not produced" not in page.split("Evaluation on held-out frames")[0]
-    assert page.count('alt="confusion matrix"') == 4  # one per front end
-    assert page.count('alt="recall by pole width"') == 4
+    assert page.count('alt="confusion matrix"') == 6  # one per front end
+    assert page.count('alt="recall by pole width"') == 6
     written = [EvaluatedFrontEnd.from_json(row) for row in
-               json.loads((out / "evaluation" / "summary.json").read_text())]
+               read_record(out / "evaluation" / "summary.json", "demo evaluation")["rows"]]
     assert written == list(evaluated.front_ends)
     assert [row.evaluation.model for row in written] == ["yolov8n-seg.onnx", "yolov8n-seg-int8.onnx",
-                                                         "shipped", "colour-filter"]
+                                                         "shipped", "colour-filter", "yolov8n-seg.onnx (boxes, pose)",
+                                                         "shipped-robot (boxes, pose)"]
+    # The robot front end beside the trained model: the same frames, each with its pose, both matched by box.
+    boxed = {row.evaluation.model: row.evaluation for row in written if "(boxes, pose)" in row.evaluation.model}
+    assert all(e.matching == "box" and e.camera_poses >= e.images for e in boxed.values())
+    robot = boxed["shipped-robot (boxes, pose)"]
+    assert 0 <= robot.precision <= 1 and robot.f1 is not None and f"{robot.f1:.3f}" in page
+    slam = DemoSlam.from_json(stages["slam"]["summary"])
+    assert [run.front_end for run in slam.runs] == ["model", "robot front end", "colour filter"]
+    speed = DemoSpeed.from_json(stages["speed"]["summary"])
+    assert [row.front_end for row in speed.rows] == ["accurate model, INT8", "robot front end"]
+    for row in speed.rows:
+        assert (row.capped_ms is not None and row.capped_ms > 0) or "not timed" in row.note
+        assert row.uncapped_ms is not None and row.uncapped_ms > 0
+    assert speed.rows[1].uncapped_ms < speed.rows[0].uncapped_ms  # the robot front end is the fast one
     # The shipped model as installed is counted beside the trained one, and the report says what training bought.
     f1 = {row.evaluation.model: row.evaluation.f1 for row in written}
     gain = evaluated.against_shipped
@@ -102,7 +118,7 @@ def test_demo_runs_every_stage_writes_the_report_and_resumes(tmp_path, monkeypat
     # A second run finds every stage up to date and redoes nothing.
     before = {k: v["seconds"] for k, v in stages.items()}
     assert run_demo(out, TINY) == 0
-    after = json.loads((out / "stages.json").read_text())
+    after = read_record(out / "stages.json", "stages")
     assert {k: v["seconds"] for k, v in after.items()} == before
     # A new starting checkpoint (an updated package ships other weights) makes training, and all after it, run again.
     monkeypatch.setattr("detector.demo.pipeline._start_weights", lambda model: None)
@@ -110,7 +126,7 @@ def test_demo_runs_every_stage_writes_the_report_and_resumes(tmp_path, monkeypat
     stale.write_bytes(b"an overlay of the model before")
     assert run_demo(out, TINY) == 0
     assert not stale.exists()  # a stage that runs again replaces its folder whole
-    again = json.loads((out / "stages.json").read_text())
+    again = read_record(out / "stages.json", "stages")
     assert TrainingSummary.from_json(again["train yolov8n-seg"]["summary"]).started_from is None
     assert DemoEvaluation.from_json(again["evaluate"]["summary"]).conf_source == "best F1 on the validation split"
     assert TrainingSummary.from_json(stages["train yolov8n-seg"]["summary"]).started_from.name == "poles-yolov8n-seg.pt"

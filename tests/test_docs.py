@@ -101,7 +101,7 @@ def test_the_readmes_own_export_way_runs_as_written_on_a_rendered_export(synth_d
     monkeypatch.chdir(tmp_path)
     lines = _readme_walk_through("Your own export, start to finish")
     assert [line.split()[1] for line in lines] == ["check", "finetune", "predict"]
-    _run_as_written(lines, {"--out runs/mine": "--out runs/mine --minutes 0.3 --epochs 2 --imgsz 64 --copies 1 "
+    _run_as_written(lines, {"--out runs/mine": "--out runs/mine --minutes 3 --epochs 2 --imgsz 64 --copies 1 "
                                                "--evaluation-frames 10"}, export, frames)
     assert (tmp_path / "runs" / "mine" / "report.html").is_file()
     assert any((tmp_path / "prelabels").rglob("*.txt"))

@@ -6,19 +6,23 @@ from __future__ import annotations
 import colorsys
 import hashlib
 import json
+import re
 import shutil
 from pathlib import Path
 
 import pytest
 
 from detector.cli import main
-from detector.datasets.io import load_dataset
+from detector.datasets.io import SplitCounts, load_dataset
 from detector.evaluation.results import Counts, FrameCounts
 from detector.finetune.blend import BlendScore, frame_errors, frames_against, pick_share
 from detector.finetune.intake import prepare_dataset
+from detector.finetune.budget import (MARGIN, MIN_TRAINING_S, BudgetTooSmall, UnitCosts, plan_job,
+                                     training_minutes)
 from detector.finetune.pipeline import run_finetune
 from detector.finetune.recipe import BLEND_SHARES, DEFAULT_BLEND_SHARE, FinetuneRecipe
 from detector.finetune.results import FinetuneResult
+from detector.formats import read_record
 from detector.stages import StageFailed, StageLedger
 from detector.synth.generate import SynthJob, generate_dataset
 from detector.synth.scene import SceneConfig
@@ -27,7 +31,8 @@ from naoslam.crop_detector import CropDetector
 from naoslam.detector import LandmarkDetector, load_detector
 
 #: A tiny recipe: 64 px, one augmented copy, a few seconds of training, 10-frame rendered sets.
-TINY = FinetuneRecipe(minutes=0.3, epochs=2, copies=1, imgsz=64, evaluation_frames=10)
+#: Tiny settings: the epoch cap ends training long before the minutes, which the plan only has to fit in.
+TINY = FinetuneRecipe(minutes=3, epochs=2, copies=1, imgsz=64, evaluation_frames=10)
 
 
 def _digest(folder: Path) -> str:
@@ -63,14 +68,15 @@ def test_finetune_writes_the_models_the_report_and_the_metrics_and_leaves_the_ex
     stages = result.stages
     assert stages.export.calibrated is False and stages.export.int8 == out / "models" / "poles-finetuned-int8.onnx"
     assert stages.export.int8.is_file() and stages.export.check.fp32_problems == ()
-    assert FinetuneResult.from_json(json.loads((out / "metrics.json").read_text())) == result
+    assert FinetuneResult.from_json(read_record(out / "metrics.json", "finetune")) == result
     assert {row.set_name for row in stages.evaluate.rows} == {"your test frames", "rendered", "far poles"}
     assert {row.model for row in stages.evaluate.rows} == {"shipped", "fine-tune", f"blend {stages.blend.chosen:g}"}
     for row in stages.evaluate.rows:
         assert row.counts.tp + row.counts.fn > 0 and (row.model == "shipped") == (row.f1_change is None)
     page = (out / "report.html").read_text()
     assert "What the fine-tune changed" in page and "far poles" in page and "data:image/png;base64" in page
-    assert stages.rehearsal.frames == TINY.rehearsal_frames(stages.augment.train_images_out) > 0
+    assert stages.rehearsal.frames == stages.plan.rehearsal_frames == TINY.rehearsal_frames(
+        stages.augment.train_images_out) > 0
 
 
 def test_the_robot_model_is_fine_tuned_and_shipped_as_the_robot_model_is(export, tmp_path):
@@ -78,7 +84,7 @@ def test_the_robot_model_is_fine_tuned_and_shipped_as_the_robot_model_is(export,
     from naoslam.shipped import OPERATING_CONF_KEY, robot_path
 
     installed = sorted(ROBOT_WEIGHTS.parent.iterdir()) + sorted(robot_path().parent.iterdir())
-    stages = run_finetune(export, tmp_path / "run", FinetuneRecipe(model="robot", minutes=0.2, epochs=2, copies=1,
+    stages = run_finetune(export, tmp_path / "run", FinetuneRecipe(model="robot", minutes=2, epochs=2, copies=1,
                                                                    evaluation_frames=10)).stages
     assert sorted(ROBOT_WEIGHTS.parent.iterdir()) + sorted(robot_path().parent.iterdir()) == installed
     model = stages.export.fp32
@@ -163,7 +169,7 @@ def test_paint_from_recovers_a_paint_the_renderer_was_told(tmp_path):
 def test_poles_synth_paint_from_writes_the_paint_it_measured(synth_dataset, tmp_path, capsys):
     assert main(["synth", "--out", str(tmp_path / "painted"), "--images", "4", "--paint-from", str(synth_dataset),
                  "--workers", "1"]) == 0
-    paint = json.loads((tmp_path / "painted" / "paint.json").read_text())
+    paint = read_record(tmp_path / "painted" / "paint.json", "paint")
     generator = json.loads((tmp_path / "painted" / "annotations.json").read_text())["generator"]
     assert generator["team_paint"] == {letter: rgb for letter, rgb in paint["letters"].items()}
     assert "poles measured" in capsys.readouterr().out
@@ -216,9 +222,44 @@ def test_the_recipe_refuses_a_share_that_leaves_no_frame_of_yours_and_shares_the
         FinetuneRecipe(rehearsal_share=1.0)
     assert FinetuneRecipe(rehearsal_share=0.5).rehearsal_frames(88) == 88
     assert FinetuneRecipe(rehearsal_share=0.0).rehearsal_frames(88) == 0
-    recipe = FinetuneRecipe(minutes=15)
-    assert recipe.training_minutes(1.0) == pytest.approx(14.0 - recipe.after_training_minutes)
-    assert FinetuneRecipe(minutes=0.3).training_minutes(5.0) == 0.3
+
+
+#: Unit costs of a two-core machine (seconds): decoding a frame, augmenting one, rendering one, judging one.
+COSTS = UnitCosts(decode=0.006, augment=0.09, render=0.3, judge=0.18, workers=2)
+
+
+@pytest.mark.parametrize("model", ["accurate", "robot"])
+@pytest.mark.parametrize("minutes", [5, 15])
+def test_the_plan_fits_a_large_export_into_its_minutes_with_less_work_that_scales(model, minutes):
+    recipe = FinetuneRecipe(model=model, minutes=minutes)
+    network = recipe.start.network
+    large = plan_job(recipe, SplitCounts(1400, 200, 400), COSTS, network)
+    small = plan_job(recipe, SplitCounts(10, 1, 3), COSTS, network)
+    for plan in (large, small):
+        assert sum(plan.seconds.values()) == pytest.approx(60 * minutes * (1 - MARGIN), abs=0.5)
+        assert plan.seconds["train"] >= MIN_TRAINING_S[network]
+    assert small.copies == recipe.copies
+    assert small.evaluation_frames == (recipe.evaluation_frames if minutes == 15 else small.evaluation_frames)
+    assert small.evaluation_frames <= recipe.evaluation_frames and not small.cuts[1:]
+    assert large.copies < recipe.copies and large.rehearsal_frames < recipe.rehearsal_frames(1400 * 8)
+    assert any("augmented copies of each of your 1,400 training frames, not 7" in cut for cut in large.cuts)
+    assert large.evaluation_frames <= small.evaluation_frames
+
+
+def test_a_budget_below_the_least_work_is_refused_naming_the_smallest_that_plans():
+    recipe = FinetuneRecipe(minutes=0.05)
+    with pytest.raises(BudgetTooSmall, match=r"at least ([\d.]+) minutes") as refused:
+        plan_job(recipe, SplitCounts(1400, 200, 400), COSTS, "yolo")
+    smallest = float(re.search(r"at least ([\d.]+) minutes", str(refused.value)).group(1))
+    plan = plan_job(FinetuneRecipe(minutes=smallest), SplitCounts(1400, 200, 400), COSTS, "yolo")
+    assert plan.seconds["train"] >= MIN_TRAINING_S["yolo"]
+
+
+def test_the_training_cap_leaves_what_the_later_stages_need():
+    plan = plan_job(FinetuneRecipe(minutes=15), SplitCounts(10, 1, 3), COSTS, "yolo")
+    later = (plan.seconds["training start"] + plan.after_training_seconds()) / 60
+    assert training_minutes(plan, 1.0) == pytest.approx(15 * (1 - MARGIN) - 1.0 - later)
+    assert training_minutes(plan, 60.0) == MIN_TRAINING_S["yolo"] / 60
 
 
 def test_each_starting_model_brings_its_measured_recipe_and_a_flag_overrides_it():

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from augment.config import OPERATIONS, THESIS_COPIES, AugmentConfig
-from detector.atomic import write_json
+from detector.formats import write_record
 from detector.cli.arguments import add_dataset_argument, existing, finite_number, image_size, whole_number
 from detector.datasets.split import THESIS_RATIOS
 from detector.synth.scene import SceneConfig
@@ -137,7 +137,7 @@ def _synth(args: argparse.Namespace) -> int:
     out = generate_dataset(args.out, job, workers=args.workers, preview=args.preview, force=args.force,
                            protect=existing(args.backgrounds, args.paint_from))
     if paint is not None:
-        write_json(out / "paint.json", paint.to_json())
+        write_record(out / "paint.json", "paint", paint.to_json())
     print(f"wrote {images} images to {out}")
     return 0
 

@@ -1,8 +1,9 @@
 """``poles demo``: the whole pipeline on the embedded synthetic default, stage by stage, resumable, with a report.
 
 data -> check -> augment -> train -> export (FP32 + INT8) -> calibrate -> evaluate (model, INT8, the shipped model,
-colour filter)
--> slam (image-level walk through the exported model, the colour filter, and the back-end table) -> report.
+colour filter; the model and the robot front end by box with each frame's camera pose) -> slam (image-level walk
+through the exported model, the robot front end and the colour filter, and the back-end table) -> speed (the model's
+INT8 copy and the robot front end per frame, capped at the Atom's instruction set and not) -> report.
 """
 from __future__ import annotations
 
@@ -14,21 +15,23 @@ from rich.table import Table
 
 from augment.run import AugmentSummary, augment_dataset
 from calibration.run import CalibrationResult, embed_calibration, run_calibration
-from detector.atomic import write_json
+from detector.formats import write_record
 from detector.console import make_console
 from detector.datasets import load_dataset
 from detector.datasets.check import check_dataset
 from detector.datasets.io import SplitCounts
+from detector.datasets.truth import load_camera_poses
 from detector.demo.budget import Budget
 from detector.demo.report import write_report
 from detector.demo.results import (AgainstShipped, CheckSummary, DatasetSummary, DemoEvaluation, DemoResult, DemoSlam,
-                                   EvaluatedFrontEnd, SlamRun)
+                                   DemoSpeed, EvaluatedFrontEnd, SlamRun, SpeedRow)
 from detector.evaluation.paired import REFERENCE, f1_difference
 from detector.evaluation.predictors import make_predictor
 from detector.evaluation.results import Evaluation
 from detector.evaluation.run import evaluate
 from detector.model_files import SHIPPED_WEIGHTS, read_info
 from detector.outputs import stage_folder
+from detector.speed import engine, time_front_ends
 from detector.slam.comparison import BACKENDS, compare_backends
 from detector.slam.outputs import write_outputs
 from detector.slam.sequences import FrontEndSpec, image_sequences, sim_sequence
@@ -42,7 +45,7 @@ from export.run import ExportJob, ExportReport, run_export
 from naoslam.ekf_slam import SlamConfig
 from naoslam.measurement import RangeCalibration
 from naoslam.runner import run_slam
-from naoslam.shipped import COLOUR_FILTER, OPERATING_CONF_KEY, shipped_model, shipped_path
+from naoslam.shipped import COLOUR_FILTER, OPERATING_CONF_KEY, robot_path, shipped_model, shipped_path
 from naoslam.sim import SimConfig
 
 console = make_console()
@@ -50,6 +53,10 @@ console = make_console()
 #: Fewest labelled validation poles a best-F1 threshold is chosen on. Below it the choice is noise (the v4 demo's 30
 #: frames, 39 poles, picked 0.20 where its test frames peak at 0.55), so the starting model's threshold stays.
 MIN_TUNING_POLES = 200
+#: The robot front end, evaluated, mapped with and timed beside the trained model.
+ROBOT = "shipped-robot"
+#: Held-out frames (with their camera poses) each front end is timed on, and passes over them after a warm-up one.
+SPEED_FRAMES, SPEED_REPEATS = 10, 2
 
 
 def run_demo(out: Path, budget: Budget, seed: int = 0) -> int:
@@ -60,7 +67,7 @@ def run_demo(out: Path, budget: Budget, seed: int = 0) -> int:
     out.mkdir(parents=True, exist_ok=True)
     ledger = StageLedger(out, announce=lambda text: console.rule(f"[bold]{text}", align="left"))
     console.print(f"[bold]poles demo[/bold] ({budget.name} budget) into {out}: "
-                  "data, check, augment, train, export, calibrate, evaluate, slam, report")
+                  "data, check, augment, train, export, calibrate, evaluate, slam, speed, report")
     try:
         results = _stages(ledger, out, budget, seed, started)
     except StageFailed as failure:
@@ -104,7 +111,8 @@ def _stages(ledger: StageLedger, out: Path, budget: Budget, seed: int, started: 
                              CalibrationResult)
     starting_conf = _starting_conf(budget.models[0]) if budget.conf is None else None
     evaluate_key = stage_key(calibration=calibration_key, conf=budget.conf, min_poles=MIN_TUNING_POLES,
-                             starting_conf=starting_conf, reference=file_fingerprint(shipped_path()))
+                             starting_conf=starting_conf, reference=file_fingerprint(shipped_path()),
+                             robot=file_fingerprint(robot_path()))
     evaluation = ledger.run("evaluate", evaluate_key, [out / "evaluation" / "summary.json"],
                             lambda: _evaluate(out / "evaluation", [p for p, _ in models.values()], data,
                                               calibration.calibration, budget, starting_conf), DemoEvaluation)
@@ -112,7 +120,11 @@ def _stages(ledger: StageLedger, out: Path, budget: Budget, seed: int, started: 
     best_model = next(iter(models.values()))[0]
     slam = ledger.run("slam", slam_key, [out / "slam" / "summary.json"], lambda: _slam(
         out / "slam", best_model, calibration.calibration, budget, evaluation.conf, seed), DemoSlam)
-    return DemoResult(dataset, checked, augment, tuple(trainings), tuple(exports), calibration, evaluation, slam)
+    speed_key = stage_key(evaluate=evaluate_key, frames=SPEED_FRAMES, repeats=SPEED_REPEATS)
+    speed = ledger.run("speed", speed_key, [out / "speed" / "summary.json"],
+                       lambda: _speed(out / "speed", int8_path(best_model), data), DemoSpeed)
+    return DemoResult(dataset, checked, augment, tuple(trainings), tuple(exports), calibration, evaluation, slam,
+                      speed)
 
 
 def _dataset_summary(root: Path) -> DatasetSummary:
@@ -198,10 +210,23 @@ def _evaluate(folder: Path, models: list[Path], data: Path, calibration: RangeCa
             evaluated[predictor.name] = EvaluatedFrontEnd(
                 evaluate(predictor, data, tmp / predictor.name, "test", reference_conf if predictor is reference
                          else conf), folder / predictor.name)
-        write_json(tmp / "summary.json", [front_end.to_json() for front_end in evaluated.values()])
+        for predictor, box_conf, subfolder in _box_front_ends(models[0], calibration, conf):
+            evaluated[predictor.name] = EvaluatedFrontEnd(
+                evaluate(predictor, data, tmp / subfolder, "test", box_conf, use_pose=True), folder / subfolder)
+        write_record(tmp / "summary.json", "demo evaluation", [front_end.to_json() for front_end in evaluated.values()])
     gain = f1_difference(evaluated[REFERENCE].evaluation.per_image, evaluated[predictors[0].name].evaluation.per_image)
     return DemoEvaluation(tuple(evaluated.values()), conf, conf_source,
                           AgainstShipped(predictors[0].name, REFERENCE, reference_conf, gain))
+
+
+def _box_front_ends(model: Path, calibration: RangeCalibration, conf: float) -> list[tuple]:
+    """The trained model and the robot front end as the robot would run them, each frame with its camera pose, both
+    matched to the labels by box IoU (the robot front end has no masks): (predictor, threshold, folder name)."""
+    accurate = make_predictor(str(model), calibration=calibration)
+    accurate.matching, accurate.name = "box", f"{model.name} (boxes, pose)"
+    robot = make_predictor(ROBOT)
+    robot.name = f"{ROBOT} (boxes, pose)"
+    return [(accurate, conf, f"{model.stem}-boxes-pose"), (robot, robot.operating_conf or conf, f"{ROBOT}-boxes-pose")]
 
 
 def operating_threshold(validation: Evaluation, starting_conf: float | None) -> tuple[float, str]:
@@ -219,7 +244,7 @@ def _slam(folder: Path, model: Path, calibration: RangeCalibration, budget: Budg
     sim = SimConfig(duration_s=budget.walk_seconds, seed=seed)
     chosen = SlamConfig()
     runs, tables = [], {}
-    front_ends = {"model": FrontEndSpec(str(model), calibration, conf),
+    front_ends = {"model": FrontEndSpec(str(model), calibration, conf), "robot front end": FrontEndSpec(ROBOT),
                   "colour filter": FrontEndSpec(COLOUR_FILTER, calibration, conf)}
     with stage_folder(folder, (), "slam run") as tmp:
         for name, sequence in zip(front_ends, image_sequences(sim, list(front_ends.values()))):
@@ -232,8 +257,31 @@ def _slam(folder: Path, model: Path, calibration: RangeCalibration, budget: Budg
             lambda s: sim_sequence(SimConfig(duration_s=budget.walk_seconds, seed=s)),
             list(range(budget.compare_seeds))))
         summary = DemoSlam(chosen.label, budget.walk_seconds, tuple(runs), tables)
-        write_json(tmp / "summary.json", summary.to_json())
+        write_record(tmp / "summary.json", "demo slam", summary.to_json())
     return summary
+
+
+def _speed(folder: Path, int8: Path, data: Path) -> DemoSpeed:
+    """The trained model's INT8 copy and the robot front end, each as naoslam runs it on one thread, timed on
+    ``SPEED_FRAMES`` held-out frames with their camera poses in two fresh processes: capped at the Atom's
+    instruction set, and not."""
+    dataset = load_dataset(data)
+    poses = load_camera_poses(dataset)
+    samples = [sample for sample in dataset.split("test") if sample.image.name in poses][:SPEED_FRAMES]
+    front_ends = [("accurate model, INT8", str(int8)), ("robot front end", ROBOT)]
+    timings = time_front_ends(front_ends, [str(s.image) for s in samples],
+                              [(poses[s.image.name].z, poses[s.image.name].pitch, poses[s.image.name].roll)
+                               for s in samples], SPEED_REPEATS)
+    rows = []
+    for label, model in front_ends:
+        capped, uncapped = timings["capped"][label], timings["uncapped"][label]
+        notes = [value for value in (capped, uncapped) if isinstance(value, str)]
+        rows.append(SpeedRow(label, Path(model).name, capped if isinstance(capped, float) else None,
+                             uncapped if isinstance(uncapped, float) else None, "; ".join(notes)))
+    speed = DemoSpeed(len(samples), engine(), tuple(rows))
+    with stage_folder(folder, (data,), "speed") as tmp:
+        write_record(tmp / "summary.json", "demo speed", speed.to_json())
+    return speed
 
 
 def _print_timings(ledger: StageLedger) -> None:
@@ -263,4 +311,12 @@ def _print_headlines(results: DemoResult) -> None:
     for run in results.slam.runs:
         figure = ", ".join(f"{name} error {value:.3f} m" for name, value in run.figures.errors().items())
         table.add_row(f"SLAM ({results.slam.backend}) through the {run.front_end}", figure)
+    for row in results.speed.rows:
+        table.add_row(f"{row.front_end} per frame, one thread ({results.speed.engine})",
+                      f"{_ms(row.capped_ms)} at the Atom's instruction set, {_ms(row.uncapped_ms)} uncapped"
+                      + (f" ({row.note})" if row.note else ""))
     console.print(table)
+
+
+def _ms(value: float | None) -> str:
+    return f"{value:.1f} ms" if value is not None else "not timed"

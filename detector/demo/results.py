@@ -86,6 +86,27 @@ class DemoSlam(JsonRecord):
 
 
 @dataclass(frozen=True)
+class SpeedRow(JsonRecord):
+    """One front end's median time per frame, one thread, capped at the Atom's instruction set and not (None where
+    it was not timed, ``note`` saying why)."""
+
+    front_end: str
+    model: str
+    capped_ms: float | None
+    uncapped_ms: float | None
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class DemoSpeed(JsonRecord):
+    """Both front ends timed on held-out frames with their camera poses, in fresh processes, with the engine used."""
+
+    frames: int
+    engine: str
+    rows: tuple[SpeedRow, ...]
+
+
+@dataclass(frozen=True)
 class DemoResult:
     """Every stage's result, in the order they ran; the report is written from it."""
 
@@ -97,3 +118,4 @@ class DemoResult:
     calibrate: CalibrationResult
     evaluate: DemoEvaluation
     slam: DemoSlam
+    speed: DemoSpeed

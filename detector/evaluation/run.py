@@ -11,6 +11,7 @@ from rich.table import Table
 
 from detector.console import make_console, show_progress
 from detector.datasets.intake import open_dataset
+from detector.datasets.io import load_dataset
 from detector.datasets.model import SPLITS
 from detector.datasets.polygons import polygon_to_mask
 from detector.datasets.truth import load_camera_poses, load_truth
@@ -21,7 +22,7 @@ from detector.evaluation.paired import f1_difference
 from detector.evaluation.plots import plot_confusion, plot_per_image, plot_recall_by_width, plot_sweep, write_overlay
 from detector.evaluation.predictors import Predictor
 from detector.evaluation.results import Confusion, Counts, ErrorStats, Evaluation, FrameCounts
-from detector.atomic import write_json
+from detector.formats import write_record
 from naoslam.camera import NAO_HFOV_DEG
 from naoslam.landmarks import CLASSES
 from naoslam.detections import Detection
@@ -30,11 +31,14 @@ from naoslam.shipped import COLOUR_FILTER
 
 
 def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", conf: float = 0.5,
-             progress: bool = True, use_pose: bool = False) -> Evaluation:
-    """Evaluate ``predictor`` on ``split`` of ``data``; writes ``out``/metrics.json, plots and overlays.
-    ``use_pose``: give the front end each frame's camera pose where annotations.json records it, as on the robot."""
-    dataset = open_dataset(data, progress=progress)
-    samples = dataset.split(split)
+             progress: bool = True, use_pose: bool = False, frames: int | None = None,
+             check: bool = True) -> Evaluation:
+    """Evaluate ``predictor`` on ``split`` of ``data`` (its first ``frames``, or all); writes ``out``/metrics.json,
+    plots and overlays. ``use_pose``: give the front end each frame's camera pose where annotations.json records it,
+    as on the robot. ``check`` False skips ``poles check``'s decoding of every image, for a dataset a pipeline made
+    and checked itself."""
+    dataset = open_dataset(data, progress=progress) if check else load_dataset(data)
+    samples = dataset.split(split)[:frames]
     if not samples:
         held = [f"{name} ({count} images)" for name in SPLITS if (count := len(dataset.split(name)))]
         raise ValueError(f"{data}: the {split!r} split has no images - pick another with --split: {', '.join(held)}")
@@ -71,7 +75,7 @@ def evaluate(predictor: Predictor, data: Path, out: Path, split: str = "test", c
     plot_sweep(metrics.sweep, out / "sweep.png", predictor.name)
     plot_confusion(confusion, CLASSES, out / "confusion.png", predictor.name)
     plot_recall_by_width(metrics.recall_by_width, out / "recall_by_width.png", predictor.name)
-    write_json(out / "metrics.json", metrics.to_json())
+    write_record(out / "metrics.json", "evaluation", metrics.to_json())
     return metrics
 
 

@@ -78,15 +78,15 @@ def pick_share(scores: list[BlendScore]) -> float:
 
 def choose_blend(shipped: Path, finetuned: Path, data: Path, folder: Path, conf: float,
                  predictor_of: Callable[[Path], Predictor],
-                 blend: Callable[[Path, Path, float, Path], Path]) -> BlendChoice:
+                 blend: Callable[[Path, Path, float, Path], Path], frames: int | None = None) -> BlendChoice:
     """Write (``blend(shipped, finetuned, share, out)``) and score (``predictor_of(checkpoint)``) every blend on
-    ``data``'s valid split at ``conf``; returns each share's figures and the chosen share (its checkpoint at
-    ``blend_path(folder, share)``)."""
+    ``data``'s valid split (its first ``frames``, or all) at ``conf``; returns each share's figures and the chosen
+    share (its checkpoint at ``blend_path(folder, share)``)."""
     scores = []
     for share in BLEND_SHARES:
         weights = blend(shipped, finetuned, share, blend_path(folder, share))
         metrics = evaluate(predictor_of(weights), data, folder / f"valid-{round(100 * share):03d}", "valid",
-                           conf, progress=False)
+                           conf, progress=False, frames=frames, check=False)
         scores.append(BlendScore(share, metrics.counts, metrics.precision, metrics.recall, metrics.f1,
                                  frame_errors(metrics.per_image)))
     default = next(score for score in scores if score.share == DEFAULT_BLEND_SHARE)

@@ -7,7 +7,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from detector.atomic import write_json
+from detector.formats import write_record
 from detector.evaluation.paired import REFERENCE, F1Difference, f1_difference
 from detector.evaluation.predictors import Predictor
 from detector.evaluation.results import Counts
@@ -65,17 +65,17 @@ def render_set(folder: Path, frames: int, far_share: float, seed: int, backgroun
                             split="test")
 
 
-def compare_models(models: dict[str, Path], sets: dict[str, tuple[Path, str]], folder: Path, conf: float,
+def compare_models(models: dict[str, Path], sets: dict[str, tuple[Path, str, int | None]], folder: Path, conf: float,
                    predictor_of: Callable[[Path], Predictor]) -> list[JudgeRow]:
     """Every model (checkpoints by name, the shipped one as ``REFERENCE`` among them, each run by ``predictor_of``) on
-    every set (dataset, split) at ``conf``; one row per set and model, written to ``folder``/summary.json with each
-    model's evaluation folder."""
+    every set (dataset, split, the first so many frames of it or None for all; each checked before) at ``conf``; one
+    row per set and model, written to ``folder``/summary.json with each model's evaluation folder."""
     rows = []
-    for set_name, (dataset, split) in sets.items():
+    for set_name, (dataset, split, frames) in sets.items():
         per_image, set_rows = {}, []
         for model_name, weights in models.items():
             out = Path(folder) / set_name.replace(" ", "-") / model_name.replace(" ", "-")
-            metrics = evaluate(predictor_of(weights), dataset, out, split, conf)
+            metrics = evaluate(predictor_of(weights), dataset, out, split, conf, frames=frames, check=False)
             per_image[model_name] = metrics.per_image
             small = [row for row in metrics.recall_by_width if row.width in SMALL_BINS]
             set_rows.append(JudgeRow(set_name, model_name, metrics.images, metrics.counts, metrics.precision,
@@ -84,5 +84,5 @@ def compare_models(models: dict[str, Path], sets: dict[str, tuple[Path, str]], f
         rows += [row if row.model == REFERENCE else
                  replace(row, f1_change=f1_difference(per_image[REFERENCE], per_image[row.model]))
                  for row in set_rows]
-    write_json(Path(folder) / "summary.json", [row.to_json() for row in rows])
+    write_record(Path(folder) / "summary.json", "judgement", [row.to_json() for row in rows])
     return rows

@@ -13,8 +13,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from augment.run import AugmentSummary, augment_dataset
-from detector.atomic import write_json
+from augment.run import AugmentSummary, augment_dataset, augment_once
 from detector.console import make_console
 from detector.datasets.intake import open_dataset
 from detector.datasets.io import DatasetWriter, SplitCounts, load_dataset
@@ -24,18 +23,21 @@ from detector.evaluation.paired import REFERENCE
 from detector.evaluation.predictors import Predictor, TorchPredictor
 from detector.finetune import crop_network
 from detector.finetune.blend import BlendChoice, choose_blend
+from detector.finetune.budget import BudgetTooSmall, JobPlan, describe, measure_costs, plan_job, training_minutes
 from detector.finetune.intake import DatasetIntake, prepare_dataset
 from detector.finetune.judge import RENDERED_SETS, Judgement, compare_models, render_set
 from detector.finetune.recipe import DEFAULT_BLEND_SHARE, SIGN_TEST_LEVEL, FinetuneRecipe
 from detector.finetune.report import write_report
 from detector.finetune.results import ExportedModel, FinetuneResult, FinetuneStages, RehearsalSummary
+from detector.formats import write_record
 from detector.model_files import add_metadata, read_checkpoint, read_info
 from detector.outputs import check_placement
+from detector.parallel import default_workers
 from detector.stages import StageFailed, StageLedger, file_fingerprint, stage_key
 from detector.synth.backdrops import scan_backdrops
-from detector.synth.generate import SynthJob, generate_dataset
+from detector.synth.generate import SynthJob, generate_dataset, render_one
 from detector.synth.scene import SceneConfig
-from detector.synth.team_paint import TeamPaint, measure_team_paint
+from detector.synth.team_paint import MIN_PART_PIXELS, NoPaintMeasured, TeamPaint, measure_team_paint
 from detector.training.soup import blend_checkpoints
 from detector.training.summary import TrainingSummary
 from detector.training.train import TrainSettings, summarise_run, train_model, trained_minutes
@@ -63,15 +65,18 @@ def run_finetune(annotated: Path, out: Path, recipe: FinetuneRecipe,
     start = time.perf_counter()
     try:
         stages = _stages(ledger, annotated, out, recipe, renames or {}, backdrops)
-    except StageFailed:
-        if new_folder and not any(record.status == "done" for record in ledger.records.values()):
+    except StageFailed as failure:
+        too_small = isinstance(failure.__cause__, BudgetTooSmall)
+        if new_folder and (too_small or not any(record.status == "done" for record in ledger.records.values())):
             shutil.rmtree(out, ignore_errors=True)  # refused before anything was made: leave nothing behind
+        if too_small:
+            raise failure.__cause__ from None  # one line: the smallest --minutes that works here
         raise
     result = FinetuneResult(recipe, stages,
                             seconds={record.name: round(record.seconds, 1) for record in ledger.timings()},
                             wall_seconds_this_call=round(time.perf_counter() - start, 1), report=out / "report.html")
     write_report(result, ledger.timings())
-    write_json(out / "metrics.json", result.to_json())
+    write_record(out / "metrics.json", "finetune", result.to_json())
     return result
 
 
@@ -98,12 +103,17 @@ def _stages(ledger: StageLedger, annotated: Path, out: Path, recipe: FinetuneRec
     key = stage_key(dataset=_dataset_fingerprint(annotated), renames=renames, seed=recipe.seed)
     intake = ledger.run("dataset", key, [data / "data.yaml"],
                         lambda: prepare_dataset(annotated, data, renames, recipe.seed), DatasetIntake)
+    plan_key = stage_key(dataset=key, recipe=recipe.settings(), backdrops=len(backdrops))
+    plan = ledger.run("plan", plan_key, [], lambda: _plan(data, recipe, backdrops), JobPlan)
+    console.print(describe(plan))
+    for cut in plan.cuts:
+        console.print(f"  {cut}")
     paint_key = stage_key(dataset=key)
-    paint = ledger.run("paint", paint_key, [out / "paint.json"], lambda: _measure_paint(data, out), TeamPaint)
-    augment_key = stage_key(dataset=key, copies=recipe.copies)
+    paint = ledger.run("paint", paint_key, [out / "paint.json"], lambda: _measure_paint(data, out, annotated), TeamPaint)
+    augment_key = stage_key(dataset=key, copies=plan.copies)
     augment = ledger.run("augment", augment_key, [augmented / "data.yaml"], lambda: augment_dataset(
-        data, augmented, copies=recipe.copies, seed=recipe.seed, preview=True, force=True), AugmentSummary)
-    frames = recipe.rehearsal_frames(augment.train_images_out)
+        data, augmented, copies=plan.copies, seed=recipe.seed, preview=True, force=True), AugmentSummary)
+    frames = plan.rehearsal_frames
     rehearsal_key = stage_key(paint=paint_key, frames=frames, far=recipe.far_share, own=recipe.own_paint_share,
                               backdrops=[str(path) for path in backdrops], backdrop_share=recipe.backdrop_share)
     rendered = ledger.run("rehearsal", rehearsal_key, [rehearsal / "data.yaml"] if frames else [],
@@ -116,25 +126,45 @@ def _stages(ledger: StageLedger, annotated: Path, out: Path, recipe: FinetuneRec
     spent = sum(record.seconds for record in ledger.timings()) / 60
     run = out / "train"
     trained = run / ("poles-robot.pt" if recipe.start.network == "crops" else "weights/last.pt")
-    train = ledger.run("train", train_key, [trained], lambda: _train(train_key, mixed, run, recipe, spent),
+    train = ledger.run("train", train_key, [trained], lambda: _train(train_key, mixed, run, recipe, plan, spent),
                        TrainingSummary)
     conf = float(_starting_metadata(recipe)[OPERATING_CONF_KEY])
-    blend_key = stage_key(train=train_key, conf=conf, default_share=DEFAULT_BLEND_SHARE, level=SIGN_TEST_LEVEL)
-    blend = ledger.run("blend", blend_key, [out / "blend"], lambda: _blend(trained, data, out / "blend", conf, recipe),
-                       BlendChoice)
+    blend_key = stage_key(train=train_key, conf=conf, default_share=DEFAULT_BLEND_SHARE, level=SIGN_TEST_LEVEL,
+                          frames=plan.blend_frames)
+    blend = ledger.run("blend", blend_key, [out / "blend"],
+                       lambda: _blend(trained, data, out / "blend", conf, recipe, plan.blend_frames), BlendChoice)
     export_key = stage_key(blend=blend_key)
     model = out / "models" / recipe.start.finetuned_name
     exported = ledger.run("export", export_key, [model],
                           lambda: _export_model(blend.weights, model, data, mixed, recipe), ExportedModel)
-    evaluate_key = stage_key(export=export_key, frames=recipe.evaluation_frames, sets=RENDERED_SETS)
+    evaluate_key = stage_key(export=export_key, frames=plan.evaluation_frames, held_out=plan.held_out_frames,
+                             sets=RENDERED_SETS)
     judgement = ledger.run("evaluate", evaluate_key, [out / "evaluation" / "summary.json"], lambda: _evaluate(
-        out / "evaluation", data, trained, blend, conf, recipe), Judgement)
-    return FinetuneStages(intake, paint, augment, rendered, mix, train, blend, exported, judgement)
+        out / "evaluation", data, trained, blend, conf, recipe, plan), Judgement)
+    return FinetuneStages(intake, plan, paint, augment, rendered, mix, train, blend, exported, judgement)
 
 
-def _measure_paint(data: Path, out: Path) -> TeamPaint:
-    paint = measure_team_paint(data)
-    write_json(out / "paint.json", paint.to_json())
+def _plan(data: Path, recipe: FinetuneRecipe, backdrops: tuple[Path, ...]) -> JobPlan:
+    """The work fitted to ``recipe.minutes``, from this machine's speed at each kind of work on the team's frames."""
+    dataset = load_dataset(data)
+    samples = [sample for split in ("train", "valid") for sample in dataset.split(split)]
+    job = SynthJob(1, recipe.seed + 7000, config=SceneConfig(far_share=recipe.far_share), backgrounds=backdrops,
+                   backdrop_share=recipe.backdrop_share)
+    predictor = judging_predictor(recipe)(recipe.start.weights)
+    costs = measure_costs(samples, lambda: render_one(job, 0), predictor, augment_once, default_workers(1000))
+    frames = SplitCounts(*(len(dataset.split(split)) for split in ("train", "valid", "test")))
+    return plan_job(recipe, frames, costs, recipe.start.network)
+
+
+def _measure_paint(data: Path, out: Path, annotated: Path) -> TeamPaint:
+    """The team's paint, measured on its copy of the export; refused in the export's own name."""
+    try:
+        paint = measure_team_paint(data)
+    except NoPaintMeasured:
+        raise ValueError(f"{annotated}: no annotated pole is large enough to measure its paint (each band needs "
+                         f"{MIN_PART_PIXELS} pixels) - a fine-tune learns your poles from your frames: annotate the "
+                         "poles in them, some near the camera") from None
+    write_record(out / "paint.json", "paint", paint.to_json())
     return paint
 
 
@@ -171,14 +201,15 @@ def _mix(augmented: Path, rehearsal: Path | None, out: Path) -> SplitCounts:
 MIN_RESUMED_MINUTES = 0.1
 
 
-def _train(key: str, data: Path, run: Path, recipe: FinetuneRecipe, spent_minutes: float) -> TrainingSummary:
+def _train(key: str, data: Path, run: Path, recipe: FinetuneRecipe, plan: JobPlan,
+           spent_minutes: float) -> TrainingSummary:
     """Fine-tune the shipped checkpoint for the minutes left; an interrupted run of the same stage (its key is kept
     beside the run folder) resumes from its last epoch with what is left of its minutes, a finished one is kept. The
     final weights are the fine-tune: a valid split of a few frames cannot choose an epoch. The robot's crop network
     trains in a minute or two and starts again instead."""
     if recipe.start.network == "crops":
         shutil.rmtree(run, ignore_errors=True)
-        minutes = recipe.training_minutes(spent_minutes)
+        minutes = training_minutes(plan, spent_minutes)
         console.print(f"training the crop network for at most {recipe.epoch_cap} epochs or {minutes:.1f} minutes")
         return crop_network.train(data, run, recipe.start.weights, recipe.epoch_cap, minutes, recipe.learning_rate,
                                   recipe.seed)
@@ -190,13 +221,13 @@ def _train(key: str, data: Path, run: Path, recipe: FinetuneRecipe, spent_minute
         shutil.rmtree(run)
     key_file.write_text(key)
     done = trained_minutes(run) if same_run else 0.0
-    minutes = recipe.training_minutes(spent_minutes)
+    minutes = training_minutes(plan, spent_minutes)
     if same_run:
         minutes = max(minutes - done, MIN_RESUMED_MINUTES)
     cap = f" or {recipe.epoch_cap} epochs, whichever comes first" if recipe.epoch_cap else ""
     resumed = f", resumed after {done:.1f} trained before" if same_run else ""
     console.print(f"training for {minutes:.1f} minutes{cap} ({spent_minutes:.1f} spent preparing, "
-                  f"{recipe.after_training_minutes:.1f} kept for what follows{resumed})")
+                  f"{plan.after_training_seconds() / 60:.1f} kept for what follows{resumed})")
     settings = TrainSettings(model=recipe.start.architecture, epochs=1000, imgsz=recipe.training_size,
                              batch=recipe.batch, patience=1000, seed=recipe.seed, time_hours=minutes / 60,
                              max_epochs=recipe.epoch_cap, hyperparameters=recipe.hyperparameters())
@@ -218,7 +249,8 @@ def judging_predictor(recipe: FinetuneRecipe) -> Callable[[Path], Predictor]:
     return lambda weights: TorchPredictor(weights, recipe.training_size)
 
 
-def _blend(finetuned: Path, data: Path, folder: Path, conf: float, recipe: FinetuneRecipe) -> BlendChoice:
+def _blend(finetuned: Path, data: Path, folder: Path, conf: float, recipe: FinetuneRecipe,
+           frames: int | None) -> BlendChoice:
     if recipe.start.network == "crops":
         blend = crop_network.blend
     else:
@@ -227,7 +259,7 @@ def _blend(finetuned: Path, data: Path, folder: Path, conf: float, recipe: Finet
 
     shutil.rmtree(folder, ignore_errors=True)
     folder.mkdir(parents=True)
-    return choose_blend(recipe.start.weights, finetuned, data, folder, conf, judging_predictor(recipe), blend)
+    return choose_blend(recipe.start.weights, finetuned, data, folder, conf, judging_predictor(recipe), blend, frames)
 
 
 def _export_model(weights: Path, model: Path, data: Path, mixed: Path, recipe: FinetuneRecipe) -> ExportedModel:
@@ -255,15 +287,15 @@ def _export_model(weights: Path, model: Path, data: Path, mixed: Path, recipe: F
 
 
 def _evaluate(folder: Path, data: Path, finetuned: Path, blend: BlendChoice, conf: float,
-              recipe: FinetuneRecipe) -> Judgement:
+              recipe: FinetuneRecipe, plan: JobPlan) -> Judgement:
     """Shipped model, fine-tune and chosen blend on the held-out frames (test split, else valid) and on fresh
     rendered sets, at the shipped threshold."""
     shutil.rmtree(folder, ignore_errors=True)
     held_out = "test" if load_dataset(data).split("test") else "valid"
-    sets = {f"your {held_out} frames": (data, held_out)}
+    sets = {f"your {held_out} frames": (data, held_out, plan.held_out_frames)}
     for name, (far_share, seed) in RENDERED_SETS.items():
-        sets[name] = (render_set(folder / "sets" / name.replace(" ", "-"), recipe.evaluation_frames, far_share, seed),
-                      "test")
+        sets[name] = (render_set(folder / "sets" / name.replace(" ", "-"), plan.evaluation_frames, far_share, seed),
+                      "test", None)
     models = {REFERENCE: recipe.start.weights, "fine-tune": finetuned,
               f"blend {blend.chosen:g}": blend.weights}
     return Judgement(held_out, conf, tuple(compare_models(models, sets, folder, conf, judging_predictor(recipe))))

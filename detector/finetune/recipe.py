@@ -143,17 +143,6 @@ class FinetuneRecipe:
         """Rendered frames to mix with ``real_training_frames`` (the augmented export) to reach ``rendered_share``."""
         return math.ceil(real_training_frames * self.rendered_share / (1.0 - self.rendered_share))
 
-    @property
-    def after_training_minutes(self) -> float:
-        """Minutes kept for what follows training on two cores: blending and export (about half a minute) and the
-        evaluation, three models on the held-out frames and two rendered sets at about 6.5 frames a second."""
-        return 0.5 + 3 * (2 * self.evaluation_frames + 20) / 6.5 / 60
-
-    def training_minutes(self, spent_minutes: float) -> float:
-        """Minutes left for training after ``spent_minutes`` of preparation, keeping ``after_training_minutes`` for
-        the rest; at least a minute (or the whole time, when that is shorter)."""
-        return max(min(1.0, self.minutes), self.minutes - spent_minutes - self.after_training_minutes)
-
     def hyperparameters(self) -> dict:
         """The Ultralytics training arguments this recipe sets beyond ``TrainSettings``' own."""
         return {"optimizer": "AdamW", "lr0": self.learning_rate, "warmup_epochs": self.warmup_epochs, "freeze": self.frozen_layers}

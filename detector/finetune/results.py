@@ -7,6 +7,7 @@ from pathlib import Path
 from augment.run import AugmentSummary
 from detector.datasets.io import SplitCounts
 from detector.finetune.blend import BlendChoice
+from detector.finetune.budget import JobPlan
 from detector.finetune.intake import DatasetIntake
 from detector.finetune.judge import Judgement
 from detector.finetune.recipe import FinetuneRecipe
@@ -44,6 +45,7 @@ class FinetuneStages(JsonRecord):
     """Every stage's result, in the order they run."""
 
     dataset: DatasetIntake
+    plan: JobPlan
     paint: TeamPaint
     augment: AugmentSummary
     rehearsal: RehearsalSummary

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from detector.atomic import atomic_path, write_json
+from detector.atomic import atomic_path
+from detector.formats import write_record
 from detector.figures import plt, save_figure
 from detector.slam.figures import RunFigures
 from naoslam.runner import Sequence, SlamResult
@@ -18,8 +19,9 @@ def write_outputs(result: SlamResult, sequence: Sequence, out: Path) -> RunFigur
     returns the run's headline figures."""
     out.mkdir(parents=True, exist_ok=True)
     metrics = {"sequence": sequence.name, **result.metrics()}
-    write_json(out / "metrics.json", metrics)
-    write_json(out / "map.json", {k: [float(v[0]), float(v[1])] for k, v in result.landmarks.items()})
+    write_record(out / "metrics.json", "slam", metrics)
+    write_record(out / "map.json", "slam map",
+                 {"landmarks": {k: [float(v[0]), float(v[1])] for k, v in result.landmarks.items()}})
     with atomic_path(out / "path.csv") as tmp:
         with tmp.open("w", newline="") as handle:
             writer = csv.writer(handle)

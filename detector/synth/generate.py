@@ -24,6 +24,7 @@ from detector.synth.walk import simulated_walk, walk_frame_steps, walk_scene
 from naoslam.camera import NAO_HFOV_DEG, PinholeCamera
 from naoslam.landmarks import CLASSES
 from naoslam.sim import PATHS
+from detector.formats import stamped
 
 #: Images ``poles synth`` renders unless told.
 DEFAULT_SYNTH_IMAGES = 500
@@ -229,7 +230,7 @@ def generate_dataset(out: str | Path, job: SynthJob, *, workers: int | None = No
             if preview and len(tiles) < PREVIEW_IMAGES:
                 image = cv2.imdecode(np.frombuffer(sample.jpeg, np.uint8), cv2.IMREAD_COLOR)
                 tiles.append((draw_instances(image, sample.instances), name))
-        writer.write_json("annotations.json", annotations)
+        writer.write_json("annotations.json", stamped("annotations", annotations))
     if preview and tiles:
         print(f"preview: {contact_sheet(tiles, writer.out / 'preview.png')}")
     return writer.out
