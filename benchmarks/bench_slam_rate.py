@@ -6,8 +6,10 @@ worker, camera pose given); times 7 to 10 (the Atom basis in ``bench_robot.py``)
 the walk's camera frames it gets through one in ceil(Atom time / frame period), the slow end of the range. The
 simulated walk's camera delivers ``SimConfig.frame_hz`` frames a second (tied to its odometry ticks), so a front end
 faster than that sees every frame. EKF SLAM (``poles slam``'s defaults) runs on each; robot and landmark errors are
-the means over the walks.
-Usage: python benchmarks/bench_slam_rate.py [--seeds 3] [--before OLD_ROBOT.onnx]
+the means over the walks. The two-stage front end runs once more with its "maybe" tier (``--maybe``): detections
+from that confidence up to its threshold reach the filter as tentative sightings, taken only where they confirm a
+mapped landmark of their class inside the gate.
+Usage: python benchmarks/bench_slam_rate.py [--seeds 3] [--maybe 0.4] [--before OLD_ROBOT.onnx]
 """
 from __future__ import annotations
 
@@ -30,9 +32,10 @@ def frames_kept(capped_ms: float, camera_hz: float, slowest_factor: float) -> in
 def main() -> None:
     sys.path.insert(0, str(Path(__file__).parent))
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from bench_robot import ATOM_FACTORS, speed_table
+    from bench_robot import speed_table
+    from detector.speed import ATOM_FACTORS
 
-    from detector.slam.sequences import FrontEnd, image_sequences
+    from detector.slam.sequences import FrontEndSpec, image_sequences
     from naoslam.ekf_slam import SlamConfig
     from naoslam.runner import run_slam
     from naoslam.sim import SimConfig
@@ -41,20 +44,25 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--path", default="square")
     parser.add_argument("--before", help="the robot model the two-stage one replaced (ONNX)")
+    parser.add_argument("--maybe", type=float, default=0.4, help="the two-stage front end's maybe tier's lower "
+                        "threshold (default 0.4)")
     args = parser.parse_args()
     models = [("two-stage", "shipped-robot")] + ([("robot-p4-seg (before)", args.before)] if args.before else []) + \
         [("accurate INT8", "shipped-int8")]
     capped, _ = speed_table(models, 10, 2)
     camera_hz = SimConfig().frame_hz
-    runs = [(label, model, frames_kept(capped[f"{label}|openvino|pose"], camera_hz, ATOM_FACTORS[1]))
+    runs = [(label, FrontEndSpec(model), frames_kept(capped[f"{label}|openvino|pose"], camera_hz, ATOM_FACTORS[1]))
             for label, model in models]
-    runs.append(("accurate INT8, every frame", "shipped-int8", 1))
+    two_stage = next(every for label, _, every in runs if label == "two-stage")
+    runs.insert(1, (f"two-stage, maybe from {args.maybe:g}", FrontEndSpec("shipped-robot", maybe_confidence=args.maybe),
+                    two_stage))
+    runs.append(("accurate INT8, every frame", FrontEndSpec("shipped-int8"), 1))
     errors: dict[str, list[tuple[float, float]]] = {}
     for seed in range(args.seeds):
         for every in sorted({every for _, _, every in runs}):
             config = SimConfig(path=args.path, seed=seed, front_end_hz=camera_hz / every if every > 1 else None)
-            chosen = [(label, model) for label, model, e in runs if e == every]
-            sequences = image_sequences(config, [FrontEnd(model) for _, model in chosen], progress=False)
+            chosen = [(label, spec) for label, spec, e in runs if e == every]
+            sequences = image_sequences(config, [spec for _, spec in chosen], progress=False)
             for (label, _), sequence in zip(chosen, sequences):
                 result = run_slam(sequence, SlamConfig(), (0.01, 0.01, 0.01))
                 errors.setdefault(label, []).append((result.metrics()["robot_error"]["mean"],

@@ -104,6 +104,8 @@ class UpdateLog:
     initialised: list[str] = field(default_factory=list)
     pending: list[str] = field(default_factory=list)
     rejected: list[str] = field(default_factory=list)
+    #: Tentative sightings that confirmed no mapped landmark of their class, and were dropped.
+    unconfirmed: list[str] = field(default_factory=list)
     nis: list[float] = field(default_factory=list)
 
 
@@ -178,7 +180,8 @@ class EkfSlam:
         sigma[r:, :r] = sigma[:r, r:].T
 
     def update(self, measurements: list[Measurement]) -> UpdateLog:
-        """Fold in one frame's measurements, one at a time; no landmark takes two detections of one frame."""
+        """Fold in one frame's measurements, one at a time; no landmark takes two detections of one frame. A
+        tentative measurement is taken only where it matches a mapped landmark of its class inside the gate."""
         self.frame += 1
         log = UpdateLog()
         used: set[str] = set()
@@ -186,6 +189,9 @@ class EkfSlam:
             z = np.array([m.range_m, m.bearing_rad])
             q = observation.noise(m.range_std, m.bearing_std)
             landmark, verdict, linearised = self._associate(m.signature, z, q, used)
+            if m.tentative and verdict != "match":
+                log.unconfirmed.append(m.signature)
+                continue
             if landmark is not None:
                 nis = self._correct(linearised)
                 if nis is None:

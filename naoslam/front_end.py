@@ -24,22 +24,24 @@ class FrontEnd:
     ``model``: a name ``load_detector`` knows (``shipped``, ``shipped-int8``, ``shipped-robot``, ``colour-filter``),
     an ONNX path, or a detector already made (a ``PoleDetector``). ``calibration`` None uses the detector's own (the
     shipped model's colour law for the colour filter). ``min_confidence`` None uses the model's operating threshold,
-    else the thesis's 0.85. ``input_width`` runs a ``--dynamic`` model at that width; ``threads`` and ``engine``
-    (``onnxruntime`` or ``openvino``) as ``load_detector``.
+    else the thesis's 0.85. ``maybe_confidence``: detections between it and that threshold become tentative
+    measurements, which a filter takes only where they confirm a mapped landmark of their class (None: none).
+    ``input_width`` runs a ``--dynamic`` model at that width; ``threads`` and ``engine`` (``onnxruntime`` or
+    ``openvino``) as ``load_detector``.
     """
 
     def __init__(self, model: str | Path | PoleDetector = "shipped", calibration: RangeCalibration | None = None,
                  min_confidence: float | None = None, input_width: int | None = None, threads: int | None = None,
-                 engine: str = "onnxruntime"):
+                 engine: str = "onnxruntime", maybe_confidence: float | None = None):
         self.detector: PoleDetector = load_detector(model, input_width=input_width, threads=threads, engine=engine) \
             if isinstance(model, (str, Path)) else model
         threshold = min_confidence if min_confidence is not None else self.detector.stored_conf or THESIS_CONF
-        self.detector.conf = min(self.detector.conf, threshold)
+        self.detector.conf = min(self.detector.conf, threshold, maybe_confidence or threshold)
         self.calibration = self.detector.check_calibration(calibration) if calibration else self.detector.calibration
         if self.calibration is None:
             raise ValueError(f"{model}: no calibration in the model - run `poles calibrate --embed` or pass "
                              "calibration=")
-        self.measurement_model = MeasurementModel(self.calibration, threshold)
+        self.measurement_model = MeasurementModel(self.calibration, threshold, maybe_confidence=maybe_confidence)
 
     def __call__(self, frame: np.ndarray, camera_pose: CameraPose | None = None) -> list[Measurement]:
         """Measurements of the poles in one BGR frame; with the camera's pose (height, pitch, roll), the ground-plane

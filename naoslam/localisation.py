@@ -100,8 +100,10 @@ class _Localiser(ABC):
     def _associate(self, covariance: Callable[[], np.ndarray],
                    measurements: list[Measurement]) -> list[tuple[Measurement, str]]:
         """The frame's detections paired with the mapped landmark each one sees, in frame order, at most one a
-        landmark (the nearest to the prediction). ``covariance()`` is asked for only when distances are needed."""
+        landmark (the nearest to the prediction). A tentative detection is paired only with a landmark of its class
+        inside the gate (never without a gate). ``covariance()`` is asked for only when distances are needed."""
         if self.gate is None:
+            measurements = [m for m in measurements if not m.tentative]
             pairs = [(m, m.signature) for m in measurements if m.signature in self.map]
             if len({landmark for _, landmark in pairs}) == len(pairs):
                 return pairs
@@ -118,7 +120,9 @@ class _Localiser(ABC):
                     scored.append((m, m.signature, distance2(m, m.signature)))
                 continue
             hypotheses = [Hypothesis(name, name, distance2(m, name)) for name in self.map]
-            landmark, _ = choose(hypotheses, m.signature, self.gate)
+            landmark, verdict = choose(hypotheses, m.signature, self.gate)
+            if m.tentative and verdict != "match":
+                continue
             scored += [(m, h.landmark, h.distance2) for h in hypotheses if h.landmark == landmark]
         nearest: dict[str, tuple[Measurement, float]] = {}
         for m, landmark, d2 in scored:

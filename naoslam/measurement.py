@@ -11,7 +11,7 @@ walking robot's noise), so the filter's measurement noise comes from data.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -53,6 +53,9 @@ class Measurement:
     source: str = ""
     #: The detection it was measured from (``naoslam.detections.Detection``), if any.
     detection: object | None = field(default=None, compare=False, repr=False)
+    #: A "maybe": seen below the operating threshold, so a filter takes it only where it confirms a mapped landmark
+    #: of its class inside the gate, never to start one.
+    tentative: bool = False
 
     def __post_init__(self) -> None:
         values = (self.range_m, self.bearing_rad, self.range_std, self.bearing_std)
@@ -199,7 +202,8 @@ class MeasurementModel:
     """
 
     def __init__(self, calibration: RangeCalibration, min_confidence: float = THESIS_CONF, range_method: str = "fused",
-                 linear_bearing: bool = False, pitch_std_rad: float = math.radians(0.5)):
+                 linear_bearing: bool = False, pitch_std_rad: float = math.radians(0.5),
+                 maybe_confidence: float | None = None):
         if range_method not in RANGE_METHODS:
             raise ValueError(f"range method {range_method!r} is not one of {', '.join(RANGE_METHODS)}")
         if not isinstance(calibration, RangeCalibration):
@@ -207,27 +211,34 @@ class MeasurementModel:
                             "without one gives None as its calibration) - fix: `poles calibrate --model MODEL.onnx "
                             "--embed MODEL.onnx`, or pass RangeCalibration.from_dict(json.load(file)['calibration']) of a "
                             "calibration.json")
+        if maybe_confidence is not None and not 0 < maybe_confidence <= min_confidence:
+            raise ValueError(f"maybe_confidence {maybe_confidence} must lie above 0 and at most the operating "
+                             f"threshold {min_confidence}")
         self.calibration = calibration
         self.min_confidence = min_confidence
+        self.maybe_confidence = maybe_confidence
         self.range_method = range_method
         self.linear_bearing = linear_bearing
         self.pitch_std_rad = pitch_std_rad
 
     def measure(self, detections, image_width: int, camera_pose: CameraPose | None = None,
                 image_height: int | None = None, view: GroundView | None = None) -> list[Measurement]:
-        """Measurements for detections (``naoslam.detections.Detection``) above the confidence threshold; a
-        ``camera_pose`` needs the ``image_height`` too, or pass the frame's ground ``view`` already built. The colour
-        filter's detections (with band centres) are ranged by the calibration's colour law from their band spacing."""
+        """Measurements for detections (``naoslam.detections.Detection``) above the confidence threshold (and, with a
+        ``maybe_confidence``, tentative ones for those between it and the threshold); a ``camera_pose`` needs the
+        ``image_height`` too, or pass the frame's ground ``view`` already built. The colour filter's detections (with
+        band centres) are ranged by the calibration's colour law from their band spacing."""
         if view is None and camera_pose is not None:
             if image_height is None:
                 raise ValueError("a camera pose needs the image height to place the principal point")
             view = GroundView(PinholeCamera(image_width, image_height, self.calibration.hfov_deg), camera_pose)
         out = []
+        lowest = self.maybe_confidence if self.maybe_confidence is not None else self.min_confidence
         for d in detections:
-            if d.confidence < self.min_confidence or d.rotated_box is None:
+            if d.confidence < lowest or d.rotated_box is None:
                 continue
+            tentative = d.confidence < self.min_confidence
             if d.band_centres is not None:
-                out.append(self._colour_measurement(d, image_width))
+                out.append(replace(self._colour_measurement(d, image_width), tentative=tentative))
                 continue
             bearing = bearing_of_column(d.centre_column, image_width, self.calibration.hfov_deg, self.linear_bearing)
             width, height = d.rotated_box.width, d.rotated_box.height
@@ -245,7 +256,7 @@ class MeasurementModel:
                 if fused is not None:
                     (range_m, range_std), used, bearing = fused, f"{used}+foot", foot.bearing_rad
             out.append(Measurement(range_m, bearing, d.name, d.confidence, range_std,
-                                   self.calibration.bearing_std_rad, used, d))
+                                   self.calibration.bearing_std_rad, used, d, tentative))
         return out
 
     def _colour_measurement(self, detection, image_width: int) -> Measurement:

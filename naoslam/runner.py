@@ -201,7 +201,7 @@ def run_slam(sequence: Sequence, config: SlamConfig | LocalisationConfig = SlamC
                                                                         config)
     times, poses, truth, odometry, nees, nis = [], [], [], [], [], []
     predict_ns, update_ns = [], []
-    counts = {"accepted": 0, "confused": 0, "initialised": 0, "pending": 0, "rejected": 0}
+    counts = {"accepted": 0, "confused": 0, "initialised": 0, "pending": 0, "rejected": 0, "unconfirmed": 0}
     for event in sequence.events:
         if event.control is not None:
             start = time.perf_counter_ns()

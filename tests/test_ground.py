@@ -178,3 +178,16 @@ def test_a_pose_with_no_ground_plane_is_refused_in_words(pose):
     """Before: ZeroDivisionError at height 0, OverflowError when upside down, silent nonsense below the floor."""
     with pytest.raises(ValueError, match="leave the pose out for this frame"):
         GroundView(CAMERA, pose)
+
+
+def test_a_maybe_threshold_measures_the_detections_below_the_threshold_as_tentative():
+    from naoslam.detections import Detection
+
+    calibration = RangeCalibration(PowerLaw(60.0, -1.0, 0.15), PowerLaw(200.0, -1.0, 0.15))
+    found = [Detection.from_box("bp", confidence, (300, 200, 320, 280)) for confidence in (0.9, 0.5, 0.2)]
+    sure = MeasurementModel(calibration, 0.85).measure(found, 640)
+    assert [(m.confidence, m.tentative) for m in sure] == [(0.9, False)]
+    maybe = MeasurementModel(calibration, 0.85, maybe_confidence=0.4).measure(found, 640)
+    assert [(m.confidence, m.tentative) for m in maybe] == [(0.9, False), (0.5, True)]
+    with pytest.raises(ValueError, match="at most the operating threshold"):
+        MeasurementModel(calibration, 0.85, maybe_confidence=0.9)

@@ -16,6 +16,7 @@ import pytest
 import torch
 import yaml
 
+from detector.formats import read_record
 from detector.cli import main
 from detector.model_files import SHIPPED_WEIGHTS
 from detector.training.train import TrainSettings, parse_hyperparameters, train_model
@@ -210,7 +211,7 @@ def test_poles_slam_localises_a_recording_on_a_map_of_the_field(robot_walk, tmp_
     errors = [np.hypot(*(row[1:3] - truth[round(row[0], 3)][:2])) for row in path]
     drift = [np.hypot(*(odometry[round(row[0], 3)][:2] - truth[round(row[0], 3)][:2])) for row in path]
     assert np.mean(errors) < 0.07 and np.mean(errors) < 0.2 * np.mean(drift)
-    assert json.loads((out / "metrics.json").read_text())["odometry_scales"]["stride"] == pytest.approx(0.8, abs=0.05)
+    assert read_record(out / "metrics.json", "slam")["odometry_scales"]["stride"] == pytest.approx(0.8, abs=0.05)
 
 
 def test_shipped_onnx_carries_calibration_and_its_threshold():
@@ -368,7 +369,7 @@ def test_set_refuses_unknown_managed_and_out_of_range_arguments_in_one_line(pair
 
 def test_evaluate_uses_the_shipped_model_at_its_threshold(synth_dataset, tmp_path):
     assert main(["evaluate", "--data", str(synth_dataset), "--out", str(tmp_path / "eval")]) == 0
-    metrics = json.loads((tmp_path / "eval" / "metrics.json").read_text())
+    metrics = read_record(tmp_path / "eval" / "metrics.json", "evaluation")
     from naoslam.detector import LandmarkDetector
 
     assert metrics["model"] == shipped_model().name
@@ -426,7 +427,7 @@ def test_input_width_is_refused_off_the_stride_and_for_a_fixed_size_model(tiny_o
 
 def test_evaluate_and_slam_take_the_input_width(synth_dataset, tmp_path, capsys):
     assert main(["evaluate", str(synth_dataset), "--imgsz", "320", "--out", str(tmp_path / "eval")]) == 0
-    assert json.loads((tmp_path / "eval" / "metrics.json").read_text())["counts"]["tp"] > 0
+    assert read_record(tmp_path / "eval" / "metrics.json", "evaluation")["counts"]["tp"] > 0
     assert main(["slam", "--sim", "square", "--imgsz", "320", "--out", str(tmp_path / "slam")]) == 2
     assert "--imgsz is a model's input width" in capsys.readouterr().err
     assert not (tmp_path / "slam").exists()

@@ -503,3 +503,41 @@ def test_the_information_filter_needs_a_start_it_can_invert_and_noise_is_never_n
     for model in (OdometryModel, VelocityModel):
         with pytest.raises(ValueError, match="none negative"):
             model(alphas=(-0.1, 0.0, 0.0, 0.0))
+
+
+def _maybe(range_m: float, bearing: float, cls: str) -> Measurement:
+    """A tentative sighting: below the operating threshold."""
+    return Measurement(range_m, bearing, cls, 0.4, 0.05, 0.02, tentative=True)
+
+
+@pytest.mark.parametrize("association", ["nearest", "class"])
+def test_a_maybe_confirms_a_mapped_landmark_of_its_class_inside_the_gate_and_nothing_else(association):
+    slam = _mapped_slam(SlamConfig(min_views=1, association=association))
+    before = slam.sigma.copy()
+    log = slam.update([_maybe(2.01, 0.1, "bp")])  # where the mapped bp is: it confirms it
+    assert log.accepted == ["bp"] and np.trace(slam.sigma) < np.trace(before)
+    for wrong in (_maybe(2.0, 0.1, "gp"), _maybe(3.5, -0.6, "bp"), _maybe(1.5, 1.2, "py")):  # class, gate, new
+        state = (slam.mu.copy(), slam.sigma.copy())
+        log = slam.update([wrong])
+        assert log.unconfirmed + log.rejected == [wrong.signature] and not log.initialised and not log.pending
+        assert np.array_equal(slam.mu, state[0]) and np.array_equal(slam.sigma, state[1])
+    assert list(slam.landmarks) == ["bp"] and len(slam.mu) == slam.robot_size + 2
+
+
+def test_a_maybe_never_starts_a_landmark_however_often_it_is_seen():
+    slam = EkfSlam(np.zeros(3), np.eye(3) * 1e-4, OdometryModel(), SlamConfig(min_views=2))
+    for _ in range(5):
+        assert slam.update([_maybe(2.0, 0.1, "bp")]).unconfirmed == ["bp"]
+    assert not slam.slots
+
+
+@pytest.mark.parametrize("filter_class", [EkfLocalisation, EifLocalisation])
+def test_a_localiser_takes_a_maybe_only_for_the_landmark_of_its_class(filter_class):
+    truth = np.array([0.1, 0.0, 0.0])
+    landmarks = {"gp": (3.0, 1.0), "bp": (-3.0, 1.0)}
+    seen = observation.expected(truth, np.array([3.0, 1.0]))
+    localiser = filter_class(np.zeros(3), np.eye(3) * 0.01, landmarks, OdometryModel())
+    assert localiser.update([Measurement(*seen, "bp", 0.4, 0.05, 0.02, tentative=True)]) == 0  # another class
+    assert localiser.update([Measurement(*seen, "gp", 0.4, 0.05, 0.02, tentative=True)]) == 1
+    thesis = filter_class(np.zeros(3), np.eye(3) * 0.01, landmarks, OdometryModel(), gate=None)
+    assert thesis.update([Measurement(*seen, "gp", 0.4, 0.05, 0.02, tentative=True)]) == 0  # no gate, no maybe

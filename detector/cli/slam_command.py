@@ -41,6 +41,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     add_input_width_argument(slam)
     slam.add_argument("--conf", type=confidence,
                       help="detections used from this confidence (default: the model's own threshold, else 0.85)")
+    slam.add_argument("--maybe-conf", type=confidence, metavar="CONF",
+                      help="also pass detections from CONF up to the threshold, as sightings the filter takes only "
+                           "where they confirm a mapped landmark of their class inside the gate (never to map one)")
     slam.add_argument("--no-camera-pose", action="store_true",
                       help="do not give the front end the camera's pose (rendered walk: the renderer's; recording: "
                            "camera_height,camera_pitch,camera_roll columns of the odometry CSV), so no ground-plane "
@@ -104,7 +107,7 @@ def _run_summary(figures: RunFigures, localising: bool) -> str:
     errors = [f"{name} error mean {value:.3f} m" for name, value in figures.errors().items()]
     if errors:
         return ", ".join(errors)
-    mapped = "" if localising else f", {figures.initialised} landmarks mapped"
+    mapped = "" if localising else f", {figures.initialised} landmark{'' if figures.initialised == 1 else 's'} mapped"
     return f"no truth to score against: {figures.accepted} sightings accepted{mapped}"
 
 
@@ -119,14 +122,20 @@ def _slam(args: argparse.Namespace) -> int:
     from detector.slam.outputs import write_outputs
     from detector.slam.reference import smooth
     from detector.slam.sequences import FrontEndSpec
-    from detector.atomic import write_json
+    from detector.formats import write_record
     from naoslam.runner import run_slam
 
+    if args.utias and (args.frontend or args.imgsz is not None or args.conf is not None or args.maybe_conf):
+        raise ValueError("--frontend, --imgsz, --conf and --maybe-conf choose what reads camera frames; a UTIAS log "
+                         "holds ranges and bearings already measured, no frames - leave them out, or give --frames "
+                         "or --sim")
     calibration = load_calibration(args.calibration) if args.calibration else None
     frontend = args.frontend or ("shipped" if args.frames else None)
     if args.imgsz is not None and frontend in (None, COLOUR_FILTER):
         raise ValueError("--imgsz is a model's input width: give --frontend model.onnx or shipped")
-    front_end = FrontEndSpec(frontend, calibration, args.conf, args.imgsz) if frontend else None
+    if args.maybe_conf is not None and not frontend:
+        raise ValueError("--maybe-conf is a front end's lower threshold: give --frontend (or --frames)")
+    front_end = FrontEndSpec(frontend, calibration, args.conf, args.imgsz, args.maybe_conf) if frontend else None
     make = _sequence_maker(args, front_end)
     with flags_for(FLAGS):
         config = _filter_config(args)
@@ -143,7 +152,7 @@ def _slam(args: argparse.Namespace) -> int:
             seeds = list(range(args.seed, args.seed + (args.compare if args.sim else 1)))
             reference = smooth if args.sim and not front_end else None
             rows = compare_backends(lambda s: sequence if s == args.seed else make(s), seeds, BACKENDS, reference)
-            write_json(out / "comparison.json", [row.to_json() for row in rows])
+            write_record(out / "comparison.json", "slam comparison", [row.to_json() for row in rows])
     print(f"{config.label} on {sequence.name}: {_run_summary(metrics, localising=bool(args.map))}; wrote {args.out}")
     if rows is not None:
         print_comparison(rows, f"back ends on {sequence.name} ({len(seeds)} seed(s))")
