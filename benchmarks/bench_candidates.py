@@ -3,8 +3,8 @@ frame sends to the crop network.
 
 A pole is **covered** when a window holds at least 70 % of its box, and **framed** when, besides, the pole fills 30
 to 130 % of the window's height (a pole cut by the frame's top or bottom may fill less): the windows the crop network
-is trained on (``detector.crops.samples.pole_for``). Sets: the three fresh rendered sets of
-``bench_robot_table.py``, one of back-lit poles only, each frame with its camera pose (and without it); and
+is trained on (``detector.crops.samples.pole_for``). Sets: the fresh rendered sets of ``bench_robot_table.py``
+(back-lit poles only among them), each frame with its camera pose (and without it); and
 ``../shared/real-poles`` (no pose recorded). Recall is also given for poles under 16 px wide (at 640 px).
 Usage: python benchmarks/bench_candidates.py [--sets FOLDER]
 """
@@ -21,23 +21,6 @@ import numpy as np
 os.environ.setdefault("YOLO_OFFLINE", "true")
 REPOSITORY = Path(__file__).resolve().parents[1]
 SHARED = REPOSITORY.parent / "shared"
-#: The back-lit set: every pole over a real backdrop, every one back-lit.
-BACKLIT = ("back-lit", 364, 1.0, 0.0)
-
-
-def backlit_set(folder: Path, frames: int) -> Path:
-    from detector.synth.backdrops import scan_backdrops
-    from detector.synth.generate import SynthJob, generate_dataset
-    from detector.synth.scene import SceneConfig
-
-    if (folder / "data.yaml").is_file():
-        return folder
-    _, seed, backdrops, far = BACKLIT
-    job = SynthJob(frames, seed, backgrounds=tuple(scan_backdrops(SHARED / "real-backgrounds" / "images")),
-                   backdrop_share=backdrops, config=SceneConfig(far_share=far, backlight_share=1.0))
-    return generate_dataset(folder, job, split="test")
-
-
 def candidate_recall(root: Path, use_pose: bool) -> dict:
     """Covered and framed poles (all, and under 16 px), candidates per frame and ms per frame over a dataset."""
     import cv2
@@ -45,7 +28,7 @@ def candidate_recall(root: Path, use_pose: bool) -> dict:
     from detector.crops.samples import coverage, ground_view, label_boxes, pole_for
     from detector.datasets.io import load_dataset
     from detector.datasets.truth import load_camera_poses
-    from naoslam.candidates import CandidateFinder
+    from naoslam.perception.candidates import CandidateFinder
 
     dataset = load_dataset(root)
     finder, poses = CandidateFinder(), load_camera_poses(dataset)
@@ -87,7 +70,6 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=400)
     args = parser.parse_args()
     sets = fresh_sets(args.sets, args.frames)
-    sets[BACKLIT[0]] = backlit_set(args.sets / f"fresh-{BACKLIT[1]}", args.frames // 2)
     rows = [(f"{name}, {'with' if pose else 'without'} pose", candidate_recall(folder, pose))
             for name, folder in sets.items() for pose in (True, False)]
     if (SHARED / "real-poles" / "data.yaml").is_file():

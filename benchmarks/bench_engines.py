@@ -78,9 +78,9 @@ def main(count: int, repeats: int) -> None:
 
     from detector.model_files import SHIPPED_WEIGHTS
     from naoslam.camera import PinholeCamera
-    from naoslam.colour_filter import ColourFilter
-    from naoslam.detector import LandmarkDetector
-    from naoslam.engines import OpenVinoForward
+    from naoslam.perception.colour_filter import ColourFilter
+    from naoslam.perception.yolo import LandmarkDetector
+    from naoslam.perception.engines import OpenVinoForward
     from naoslam.ground import GroundView
     from naoslam.shipped import shipped_path
 

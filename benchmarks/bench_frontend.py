@@ -51,7 +51,7 @@ def threshold_for(detector, frames: list[np.ndarray], count: int) -> float:
 def bench(model: Path, frames: list[np.ndarray], repeats: int) -> dict[str, float]:
     from ultralytics import YOLO
 
-    from naoslam.detector import LandmarkDetector
+    from naoslam.perception.yolo import LandmarkDetector
 
     detector = LandmarkDetector(model)
     detector.conf = threshold_for(detector, frames, DETECTIONS_PER_FRAME)

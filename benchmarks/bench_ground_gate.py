@@ -20,7 +20,7 @@ from detector.synth.effects import apply_camera_effects, camera_effects
 from detector.synth.render import render_scene
 from detector.synth.scene import SceneConfig, sample_scene
 from naoslam.camera import PinholeCamera
-from naoslam.detector import LandmarkDetector
+from naoslam.perception.yolo import LandmarkDetector
 
 CROWDED = SceneConfig(max_distractors=10, max_poles=2, p_no_pole=0.3)
 

@@ -17,7 +17,7 @@ WIDTHS = (640, 480, 416, 320)
 
 
 def main(count: int, repeats: int) -> None:
-    from naoslam.detector import LandmarkDetector
+    from naoslam.perception.yolo import LandmarkDetector
     from naoslam.shipped import shipped_path
 
     frames, poses = walk_frames(count)

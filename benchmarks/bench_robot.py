@@ -48,7 +48,7 @@ def measure(models: list[tuple[str, str]], count: int, repeats: int) -> dict:
     from bench_engines import walk_frames
 
     import naoslam
-    from naoslam.colour_filter import ColourFilter
+    from naoslam.perception.colour_filter import ColourFilter
 
     cv2.setNumThreads(1)
     frames, poses = walk_frames(count)

@@ -2,14 +2,14 @@
 as the yardstick.
 
 Columns: the whole front end per 640x480 frame with the camera's pose, one thread, capped at the Atom's instruction
-set (OpenVINO, numpy and OpenCV; ``bench_robot.py``'s workers) and uncapped; candidates per frame; F1 on three
-fresh rendered sets (over real backdrops, ray-cast, far poles), each frame with its camera pose as on the robot and
-every front end matched to the labels by box IoU >= 0.5 (the two-stage front end gives boxes, so the others are
-scored the same way); recall of poles at least and under 16 px wide over the three sets; TP / FP / FN on
+set (OpenVINO, numpy and OpenCV; ``bench_robot.py``'s workers) and uncapped; candidates per frame; F1 on four
+fresh rendered sets (over real backdrops, ray-cast, far poles, back-lit poles), each frame with its camera pose as on
+the robot and every front end matched to the labels by box IoU >= 0.5 (the two-stage front end gives boxes, so the
+others are scored the same way); recall of poles at least and under 16 px wide over the sets; TP / FP / FN on
 ``../shared/real-poles`` (no pose recorded: the whole frame); and the training time on a two-core CPU as the model
 records it. Each front end runs at its own operating threshold.
 
-The sets are rendered when missing (400 frames each, the seeds of docs/robot-model.md).
+The sets are rendered when missing (400 frames each, the back-lit one 200; the seeds of docs/robot-model.md).
 Usage: python benchmarks/bench_robot_table.py [--sets FOLDER] [--before OLD_ROBOT.onnx] [--model NEW.onnx] [--frames N]
 """
 from __future__ import annotations
@@ -23,13 +23,16 @@ from pathlib import Path
 os.environ.setdefault("YOLO_OFFLINE", "true")
 REPOSITORY = Path(__file__).resolve().parents[1]
 SHARED = REPOSITORY.parent / "shared"
-#: The fresh sets: (name, seed, backdrop share, far share), over ../shared/real-backgrounds where the share is > 0.
-SETS = (("over real backdrops", 361, 1.0, 0.0), ("ray-cast", 362, 0.0, 0.0), ("far poles", 363, 0.75, 1.0))
+#: The fresh sets: (name, seed, backdrop share, far share, back-lit share of the backdrop frames or None for the
+#: renderer's own, share of the frames asked for), over ../shared/real-backgrounds where the backdrop share is > 0.
+SETS = (("over real backdrops", 361, 1.0, 0.0, None, 1.0), ("ray-cast", 362, 0.0, 0.0, None, 1.0),
+        ("far poles", 363, 0.75, 1.0, None, 1.0), ("back-lit", 364, 1.0, 0.0, 1.0, 0.5))
 #: Width bins (``detector.evaluation.by_width``) that make up "under 16 px".
 SMALL_BINS = ("< 10 px", "10-16 px")
 
 
-def fresh_set(folder: Path, seed: int, backdrop_share: float, far_share: float, frames: int) -> Path:
+def fresh_set(folder: Path, seed: int, backdrop_share: float, far_share: float, backlight_share: float | None,
+              frames: int) -> Path:
     """The set rendered once into ``folder`` (kept for the next run)."""
     from detector.synth.backdrops import scan_backdrops
     from detector.synth.generate import SynthJob, generate_dataset
@@ -38,15 +41,16 @@ def fresh_set(folder: Path, seed: int, backdrop_share: float, far_share: float, 
     if (folder / "data.yaml").is_file():
         return folder
     backgrounds = tuple(scan_backdrops(SHARED / "real-backgrounds" / "images")) if backdrop_share else ()
-    job = SynthJob(frames, seed, backgrounds=backgrounds, backdrop_share=backdrop_share,
-                   config=SceneConfig(far_share=far_share))
+    config = SceneConfig(far_share=far_share) if backlight_share is None else \
+        SceneConfig(far_share=far_share, backlight_share=backlight_share)
+    job = SynthJob(frames, seed, backgrounds=backgrounds, backdrop_share=backdrop_share, config=config)
     return generate_dataset(folder, job, split="test")
 
 
 def fresh_sets(folder: Path, frames: int) -> dict[str, Path]:
     """Every set of ``SETS`` by name, rendered once under ``folder``."""
-    return {name: fresh_set(folder / f"fresh-{seed}", seed, backdrops, far, frames)
-            for name, seed, backdrops, far in SETS}
+    return {name: fresh_set(folder / f"fresh-{seed}", seed, backdrops, far, backlight, round(frames * share))
+            for name, seed, backdrops, far, backlight, share in SETS}
 
 
 def scores(model: str, dataset_root: Path, use_pose: bool) -> dict:
@@ -93,11 +97,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sets", type=Path, default=REPOSITORY / "runs" / "robot-table")
     parser.add_argument("--model", default="shipped-robot", help="the two-stage robot front end")
-    parser.add_argument("--before", help="the robot model it replaces (ONNX)")
+    parser.add_argument("--before", help="the robot model it replaces (ONNX), as `before`")
     parser.add_argument("--frames", type=int, default=400)
     parser.add_argument("--json", type=Path, help="also write the figures here")
     args = parser.parse_args()
-    models = [("two-stage", args.model)] + ([("robot-p4-seg (before)", args.before)] if args.before else []) + \
+    models = [("two-stage", args.model)] + ([("before", args.before)] if args.before else []) + \
         [("accurate (yardstick)", "shipped-int8")]
     sets = fresh_sets(args.sets, args.frames)
     real = SHARED / "real-poles"

@@ -17,7 +17,7 @@ from detector.console import make_console
 from detector.figures import log_log, plt, save_figure
 from detector.model_files import add_metadata, read_info
 from detector.records import JsonRecord
-from naoslam.detector import load_detector
+from naoslam.perception.loading import load_detector
 from naoslam.measurement import RangeCalibration
 
 @dataclass(frozen=True)

@@ -14,9 +14,9 @@ from detector.datasets.model import Dataset
 from detector.datasets.truth import ImageTruth, load_truth
 from detector.matching import box_iou, mask_box, mask_iou
 from naoslam.camera import NAO_HFOV_DEG, CameraPose, PinholeCamera
-from naoslam.colour_filter import ColourFilter
-from naoslam.detections import Detection, mask_centre_column, rotated_box_of_mask
-from naoslam.pole_model import PoleModel
+from naoslam.perception.colour_filter import ColourFilter
+from naoslam.perception.detections import Detection, mask_centre_column, rotated_box_of_mask
+from naoslam.perception.pole_model import PoleModel
 from naoslam.ground import GroundView, PoleExtent
 from naoslam.landmarks import PoleGeometry
 from naoslam.measurement import band_spacing_per_cm, on_axis_size

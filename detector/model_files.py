@@ -13,9 +13,9 @@ import onnx
 
 from detector.atomic import atomic_path
 from detector.formats import read_record
-from naoslam.detections import Detection
+from naoslam.perception.detections import Detection
 from naoslam.measurement import RangeCalibration
-from naoslam.model_info import METADATA_KEY, ModelInfo
+from naoslam.perception.model_info import METADATA_KEY, ModelInfo
 
 #: The pole-pretrained checkpoint shipped with the package (the source of naoslam's shipped accurate models).
 SHIPPED_WEIGHTS = Path(__file__).resolve().parent / "weights" / "poles-yolov8n-seg.pt"

@@ -22,8 +22,8 @@ from detector.datasets.model import Instance
 from detector.datasets.polygons import mask_to_polygon
 from detector.outputs import check_output_file, output_folder
 from detector.preview import CLASS_BGR, contact_sheet, draw_label
-from naoslam.detections import Detection
-from naoslam.detector import load_detector
+from naoslam.perception.detections import Detection
+from naoslam.perception.loading import load_detector
 from naoslam.landmarks import CLASSES
 from naoslam.front_end import FrontEnd
 from naoslam.measurement import Measurement

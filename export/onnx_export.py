@@ -15,7 +15,7 @@ from typing import Any
 
 from detector.outputs import check_output_file
 from detector.model_files import write_metadata
-from naoslam.model_info import ModelInfo
+from naoslam.perception.model_info import ModelInfo
 
 #: Network input (height, width) for the Nao's 640x480 frames: no letterbox padding.
 NAO_INPUT_HW = (480, 640)

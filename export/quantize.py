@@ -19,7 +19,7 @@ from onnxruntime.quantization import CalibrationDataReader, QuantFormat, QuantTy
 from onnxruntime.quantization.shape_inference import quant_pre_process
 
 from detector.model_files import read_info, write_metadata
-from naoslam.detector import LandmarkDetector
+from naoslam.perception.yolo import LandmarkDetector
 
 #: Feature convolutions of the head (cv2/cv3/cv4 stages 0 and 1) and the mask prototype branch: quantised.
 _HEAD_FEATURES = re.compile(r"/(cv[234]\.\d+/cv[234]\.\d+\.[01]|proto)/")

@@ -19,7 +19,7 @@ from export.verify import FP32_TOLERANCE, INT8_TOLERANCE, Agreement, compare, fr
 from detector.atomic import atomic_path
 from detector.formats import write_record
 from detector.records import JsonRecord
-from naoslam.detector import valid_confidence
+from naoslam.perception.pole_model import valid_confidence
 from naoslam.shipped import DEFAULT_CONF
 
 #: Frames used to verify an export, and images used to calibrate INT8.

@@ -14,7 +14,7 @@ from detector.model_files import ROBOT_WEIGHTS, SHIPPED_WEIGHTS
 from detector.model_files import read_info, write_metadata
 from export.onnx_export import int8_path
 from detector.atomic import atomic_path
-from naoslam.detector import valid_confidence
+from naoslam.perception.pole_model import valid_confidence
 from naoslam.shipped import OPERATING_CONF_KEY, robot_path, shipped_path
 
 #: The most the shipped files may add to the repository, in bytes.

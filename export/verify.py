@@ -9,8 +9,8 @@ import numpy as np
 
 from detector.matching import box_iou, greedy_match
 from detector.records import JsonRecord
-from naoslam.detections import Detection
-from naoslam.detector import LandmarkDetector
+from naoslam.perception.detections import Detection
+from naoslam.perception.yolo import LandmarkDetector
 
 
 def frontend_predict(model: Path, frames: list[np.ndarray], conf: float,

@@ -12,10 +12,10 @@ from pathlib import Path
 import numpy as np
 
 from naoslam.camera import CameraPose, PinholeCamera
-from naoslam.detector import load_detector
+from naoslam.perception.loading import load_detector
 from naoslam.ground import GroundView
 from naoslam.measurement import THESIS_CONF, Measurement, MeasurementModel, RangeCalibration
-from naoslam.pole_detector import PoleDetector
+from naoslam.perception.interface import PoleDetector
 
 
 class FrontEnd:

@@ -51,7 +51,7 @@ class Measurement:
     range_std: float
     bearing_std: float
     source: str = ""
-    #: The detection it was measured from (``naoslam.detections.Detection``), if any.
+    #: The detection it was measured from (``naoslam.perception.detections.Detection``), if any.
     detection: object | None = field(default=None, compare=False, repr=False)
     #: A "maybe": seen below the operating threshold, so a filter takes it only where it confirms a mapped landmark
     #: of its class inside the gate, never to start one.
@@ -223,7 +223,7 @@ class MeasurementModel:
 
     def measure(self, detections, image_width: int, camera_pose: CameraPose | None = None,
                 image_height: int | None = None, view: GroundView | None = None) -> list[Measurement]:
-        """Measurements for detections (``naoslam.detections.Detection``) above the confidence threshold (and, with a
+        """Measurements for detections (``naoslam.perception.detections.Detection``) above the confidence threshold (and, with a
         ``maybe_confidence``, tentative ones for those between it and the threshold); a ``camera_pose`` needs the
         ``image_height`` too, or pass the frame's ground ``view`` already built. The colour filter's detections (with
         band centres) are ranged by the calibration's colour law from their band spacing."""

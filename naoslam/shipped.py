@@ -4,7 +4,7 @@ confidence threshold it runs at (``operating_conf``).
 - the accurate model (``shipped``, and its INT8 copy ``shipped-int8``): YOLOv8n-seg at 640 px, for offline analysis,
   pre-labelling and machines with a vector unit;
 - the robot model (``shipped-robot``): the two-stage front end's crop network (pink candidates at full resolution,
-  then a small network per candidate; ``naoslam.crop_detector``), for the Nao's Atom.
+  then a small network per candidate; ``naoslam.perception.two_stage``), for the Nao's Atom.
 
 ``load_detector("shipped")`` opens the accurate one, ``load_detector("shipped-robot")`` the robot one,
 ``load_detector("colour-filter")`` the thesis's colour filter.

@@ -817,7 +817,7 @@ def test_train_robot_writes_no_model_that_finds_no_valid_pole(synth_dataset, tmp
 
 
 def test_a_tiny_frame_is_refused_by_check_and_has_no_candidates(dataset_copy, capsys, tmp_path, monkeypatch):
-    from naoslam.crop_detector import CropDetector
+    from naoslam.perception.two_stage import CropDetector
 
     monkeypatch.chdir(tmp_path)
     cv2.imwrite(str(first_image(dataset_copy)), np.zeros((1, 1, 3), np.uint8))

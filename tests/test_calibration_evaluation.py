@@ -30,9 +30,9 @@ from detector.synth.generate import SynthJob, generate_dataset
 from detector.synth.render import render_scene
 from detector.synth.scene import calibration_scene
 from naoslam.camera import PinholeCamera
-from naoslam.colour_filter import ColourFilter
-from naoslam.detections import Detection
-from naoslam.detector import LandmarkDetector
+from naoslam.perception.colour_filter import ColourFilter
+from naoslam.perception.detections import Detection
+from naoslam.perception.yolo import LandmarkDetector
 from naoslam.landmarks import CLASSES, PoleGeometry
 from naoslam.shipped import DEFAULT_CONF
 from naoslam.measurement import MeasurementModel, PowerLaw, RangeCalibration, on_axis_size
@@ -235,7 +235,7 @@ def test_range_rule_uses_width_for_a_cut_pole_and_scales_with_resolution():
 def test_a_model_without_calibration_is_refused_when_the_measurement_model_is_built(tiny_onnx):
     """The robot's pattern ``MeasurementModel(detector.calibration)`` with a model that carries none used to fail
     at the first detection with an AttributeError on None."""
-    from naoslam.detector import LandmarkDetector
+    from naoslam.perception.yolo import LandmarkDetector
 
     detector = LandmarkDetector(tiny_onnx)
     assert detector.calibration is None
@@ -258,7 +258,7 @@ def test_a_broken_calibration_in_a_model_is_refused_naming_the_model(tiny_onnx, 
 
 
 def test_measurement_model_keeps_confident_detections_only(tiny_onnx, synth_dataset):
-    from naoslam.detector import LandmarkDetector
+    from naoslam.perception.yolo import LandmarkDetector
 
     calibration = RangeCalibration(PowerLaw(50.0, -1.0), PowerLaw(220.0, -1.0))
     frame = cv2.imread(str(sorted((synth_dataset / "test" / "images").glob("*.jpg"))[0]))
@@ -472,7 +472,7 @@ def test_evaluate_takes_a_train_run_folder_for_its_best_checkpoint(tiny_run, tmp
 def test_a_models_calibration_holds_only_at_the_input_width_it_was_measured_at(calibration_shots, tmp_path, capsys):
     """A model's masks change with its input width, so its calibration records the width and is refused at another."""
     from calibration.run import embed_calibration
-    from naoslam.detector import LandmarkDetector
+    from naoslam.perception.yolo import LandmarkDetector
     from naoslam.shipped import shipped_model
 
     small = tmp_path / "calibration-320.json"

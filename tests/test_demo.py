@@ -15,7 +15,7 @@ from detector.demo.results import CheckSummary, DemoEvaluation, DemoSlam, DemoSp
 from detector.records import JsonRecord
 from detector.stages import StageFailed, StageLedger, stage_key
 from detector.training.summary import TrainingSummary
-from naoslam.detector import LandmarkDetector
+from naoslam.perception.yolo import LandmarkDetector
 
 TINY = Budget("tiny", images=24, copies=1, models=("yolov8n-seg",), imgsz=64, epochs=1, train_hours=None, batch=8,
               export_hw=(96, 128), calibration_shots=18, walk_seconds=8.0, compare_seeds=1, conf=None)
@@ -158,3 +158,15 @@ def test_the_fast_demo_trains_for_what_the_other_stages_leave_of_its_whole_time(
     assert twice_as_slow < here <= fast.train_hours
     assert fast.training_hours(3600) * 3600 == pytest.approx(MIN_TRAINING_S)
     assert TINY.training_hours(1000) is None  # a budget without a whole time trains for its epochs
+
+
+def test_the_demo_s_minutes_set_its_whole_time_and_too_few_are_refused():
+    from detector.demo.budget import BUDGETS
+
+    fast = BUDGETS["fast"]
+    assert fast.with_minutes(20).whole_minutes == 20
+    assert fast.with_minutes(20).training_hours(34.0) > fast.training_hours(34.0)
+    with pytest.raises(ValueError, match=f"at least {fast.smallest_minutes():g} minutes"):
+        fast.with_minutes(fast.smallest_minutes() - 0.5)
+    with pytest.raises(ValueError, match="trains for its 200 epochs"):
+        BUDGETS["full"].with_minutes(60)

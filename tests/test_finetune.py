@@ -27,8 +27,9 @@ from detector.stages import StageFailed, StageLedger
 from detector.synth.generate import SynthJob, generate_dataset
 from detector.synth.scene import SceneConfig
 from detector.synth.team_paint import TeamPaint, measure_team_paint
-from naoslam.crop_detector import CropDetector
-from naoslam.detector import LandmarkDetector, load_detector
+from naoslam.perception.two_stage import CropDetector
+from naoslam.perception.yolo import LandmarkDetector
+from naoslam.perception.loading import load_detector
 
 #: A tiny recipe: 64 px, one augmented copy, a few seconds of training, 10-frame rendered sets.
 #: Tiny settings: the epoch cap ends training long before the minutes, which the plan only has to fit in.
@@ -337,3 +338,10 @@ def test_a_backgrounds_folder_without_images_is_refused_before_anything_is_writt
     error = capsys.readouterr().err
     assert f"--backgrounds {tmp_path / 'field'}: no images" in error and "Traceback" not in error
     assert not (tmp_path / "run").exists() and _digest(export) == before
+
+
+def test_a_budget_too_small_is_refused_in_one_line_and_leaves_no_run_folder(export, tmp_path, capsys):
+    assert main(["finetune", str(export), "--out", str(tmp_path / "run"), "--minutes", "0.05"]) == 2
+    error = [line for line in capsys.readouterr().err.splitlines() if line.startswith("poles finetune:")]
+    assert len(error) == 1 and "--minutes 0.05 is less than this fine-tune needs" in error[0], error
+    assert re.search(r"give --minutes [\d.]+ or more", error[0]) and not (tmp_path / "run").exists()

@@ -55,7 +55,7 @@ def _records() -> dict[str, object]:
     from naoslam.ekf_slam import SlamConfig
     from naoslam.runner import run_slam
     from naoslam.shipped import shipped_path
-    from naoslam.detector import LandmarkDetector
+    from naoslam.perception.yolo import LandmarkDetector
     from naoslam.sim import SimConfig
     from detector.slam.sequences import sim_sequence
 

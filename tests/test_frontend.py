@@ -15,10 +15,10 @@ from export.onnx_export import export_onnx
 from detector.model_files import ultralytics_predict
 from export.verify import compare, frontend_predict
 from naoslam.camera import CameraPose
-from naoslam.colour_filter import ColourFilter
-from naoslam.detections import Detection, RotatedBox
-from naoslam.detector import LandmarkDetector, Letterbox, _mask_in_box
-from naoslam.frames import bgr_frame
+from naoslam.perception.colour_filter import ColourFilter
+from naoslam.perception.detections import Detection, RotatedBox
+from naoslam.perception.yolo import LandmarkDetector, Letterbox, _mask_in_box
+from naoslam.perception.frames import bgr_frame
 from tests.conftest import assert_runs_without_training_side
 
 
@@ -229,13 +229,13 @@ def test_model_without_a_segmentation_head_is_refused(tmp_path):
 
 
 def test_front_end_imports_no_training_libraries(tiny_onnx):
-    assert_runs_without_training_side(f"from naoslam.detector import LandmarkDetector; "
+    assert_runs_without_training_side(f"from naoslam.perception.yolo import LandmarkDetector; "
                                       f"LandmarkDetector({str(tiny_onnx)!r}, conf=0.001)(np.zeros((240, 320, 3), np.uint8))")
 
 
 def test_package_names_the_runtime_api_and_loads_it_on_first_use():
     code = ("import sys, naoslam; loaded_early = 'onnxruntime' in sys.modules; "
-            "from naoslam.detector import LandmarkDetector; from naoslam.ekf_slam import EkfSlam; "
+            "from naoslam.perception.yolo import LandmarkDetector; from naoslam.ekf_slam import EkfSlam; "
             "assert naoslam.LandmarkDetector is LandmarkDetector and naoslam.EkfSlam is EkfSlam; "
             "assert set(naoslam.__all__) <= set(dir(naoslam)); "
             "assert all(getattr(naoslam, name) for name in naoslam.__all__); "

@@ -13,8 +13,8 @@ from detector.synth.render import render_scene
 from detector.synth.scene import Scene, _lighting, _room
 from detector.synth.walk import render_walk, walk_camera_poses
 from naoslam.camera import CameraPose, PinholeCamera
-from naoslam.detections import Detection, mask_centre_column, rotated_box_of_mask
-from naoslam.detector import LandmarkDetector
+from naoslam.perception.detections import Detection, mask_centre_column, rotated_box_of_mask
+from naoslam.perception.yolo import LandmarkDetector
 from naoslam.ground import GroundView
 from naoslam.landmarks import PoleGeometry
 from naoslam.measurement import MeasurementModel, PowerLaw, RangeCalibration
@@ -181,7 +181,7 @@ def test_a_pose_with_no_ground_plane_is_refused_in_words(pose):
 
 
 def test_a_maybe_threshold_measures_the_detections_below_the_threshold_as_tentative():
-    from naoslam.detections import Detection
+    from naoslam.perception.detections import Detection
 
     calibration = RangeCalibration(PowerLaw(60.0, -1.0, 0.15), PowerLaw(200.0, -1.0, 0.15))
     found = [Detection.from_box("bp", confidence, (300, 200, 320, 280)) for confidence in (0.9, 0.5, 0.2)]

@@ -186,3 +186,25 @@ def test_an_annotations_json_for_other_images_is_named_not_silently_ignored(data
     assert main(["evaluate", str(dataset_copy), "--model", "colour-filter", "--out", str(tmp_path / "ev")]) == 0
     printed = capsys.readouterr().out
     assert "names none of the dataset's" in printed and "x.jpg" in printed
+
+
+def test_check_in_a_folder_it_cannot_write_keeps_its_list_in_the_temporary_folder(dataset_copy, tmp_path,
+                                                                                   monkeypatch, capsys):
+    """A list the working folder cannot take goes to the system's temporary folder, and the line says where."""
+    import os
+    import tempfile
+
+    from detector.datasets import check
+
+    for label in sorted((dataset_copy / "train" / "labels").glob("*.txt")):
+        label.write_text(label.read_text() + "".join("9 0.1 0.1 0.2 0.2 0.3 0.1\n" for _ in range(3)))
+    here = tmp_path / "read-only"
+    here.mkdir()
+    monkeypatch.chdir(here)
+    monkeypatch.setattr(check.os, "access", lambda path, mode: Path(path).resolve() != here.resolve())
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "temporary"))
+    os.makedirs(tmp_path / "temporary")
+    assert main(["check", str(dataset_copy)]) == 1
+    written = tmp_path / "temporary" / f"check-{dataset_copy.name}.txt"
+    assert written.is_file() and not any(here.iterdir())
+    assert str(written) in capsys.readouterr().out.replace("\n", "")

@@ -80,7 +80,7 @@ def test_prelabel_refuses_an_output_inside_the_frames(frames, capsys):
 @pytest.fixture
 def model_calls(monkeypatch) -> list[int]:
     """Counts the frames the pole model is run on."""
-    from naoslam.detector import LandmarkDetector
+    from naoslam.perception.yolo import LandmarkDetector
 
     calls: list[int] = []
     run = LandmarkDetector.__call__

@@ -6,6 +6,8 @@ import json
 import math
 import subprocess
 import sys
+import tempfile
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -22,11 +24,12 @@ from detector.evaluation.results import Counts
 from detector.synth.render import render_scene
 from detector.synth.scene import calibration_scene
 from naoslam.camera import PinholeCamera
-from naoslam.candidates import CandidateFinder, window_around_box
-from naoslam.crop_detector import CropDetector
-from naoslam.crops import crop_window, to_crop, to_frame
-from naoslam.detections import Detection
-from naoslam.detector import LandmarkDetector, load_detector
+from naoslam.perception.candidates import CandidateFinder, window_around_box
+from naoslam.perception.two_stage import CropDetector
+from naoslam.perception.crops import crop_window, to_crop, to_frame
+from naoslam.perception.detections import Detection
+from naoslam.perception.yolo import LandmarkDetector
+from naoslam.perception.loading import load_detector
 from naoslam.ground import GroundView, PoleExtent
 from naoslam.landmarks import CLASSES
 from detector.model_files import ROBOT_WEIGHTS
@@ -134,6 +137,36 @@ def test_the_crop_network_trains_and_its_export_loads_as_the_two_stage_front_end
     assert all(d.box_only and d.name in CLASSES and 0 < d.confidence <= 1 for d in found)
     with pytest.raises(ValueError, match="two-stage robot model"):
         LandmarkDetector(path)
+
+
+def test_the_crop_network_runs_in_openvino_at_the_atoms_instruction_set_as_in_pytorch(tiny_crop_model):
+    """The crop's normalising once compiled into an OpenVINO MVN node that fails under the SSE4.1 cap (or answered
+    with no rows): the exported network, normalising and a full-resolution convolution included, gives PyTorch's
+    answers there."""
+    pytest.importorskip("openvino")
+    from detector.speed import worker_environment
+
+    path, crops, _ = tiny_crop_model
+    blob = np.ascontiguousarray(crops.crops[:8].transpose(0, 3, 1, 2), np.float32) / 255.0
+    expected = ort_output(path, blob)
+    code = ("import sys, numpy as np, openvino as ov; blob = np.load(sys.argv[1]); "
+            "compiled = ov.Core().compile_model(sys.argv[2], 'CPU', {'INFERENCE_NUM_THREADS': 1}); "
+            "np.save(sys.argv[1], compiled(blob)[0])")
+    with tempfile.TemporaryDirectory() as folder:
+        saved = str(Path(folder) / "blob.npy")
+        np.save(saved, blob)
+        subprocess.run([sys.executable, "-c", code, saved, str(path)], env=worker_environment(capped=True),
+                       check=True, capture_output=True)
+        answered = np.load(saved)
+    assert answered.shape == expected.shape and np.abs(answered - expected).max() < 1e-4
+
+
+def ort_output(path, blob: np.ndarray) -> np.ndarray:
+    """The exported crop network's answers through onnxruntime (which the export checked against PyTorch)."""
+    import onnxruntime as ort
+
+    session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    return session.run(None, {session.get_inputs()[0].name: blob})[0]
 
 
 @pytest.mark.parametrize("keep", ["best", "last"])

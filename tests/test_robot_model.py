@@ -10,8 +10,9 @@ import numpy as np
 import onnx
 import pytest
 
-from naoslam.crop_detector import CropDetector
-from naoslam.detector import LandmarkDetector, load_detector
+from naoslam.perception.two_stage import CropDetector
+from naoslam.perception.yolo import LandmarkDetector
+from naoslam.perception.loading import load_detector
 from naoslam.front_end import FrontEnd
 from naoslam.measurement import Measurement
 from naoslam.shipped import OPERATING_CONF_KEY, resolve_model, robot_path, shipped_path

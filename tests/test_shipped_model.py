@@ -22,7 +22,8 @@ from detector.model_files import SHIPPED_WEIGHTS
 from detector.training.train import TrainSettings, parse_hyperparameters, train_model
 from export.ship import SIZE_BUDGET, shipped_files
 from naoslam.camera import CameraPose
-from naoslam.detector import LandmarkDetector, load_detector
+from naoslam.perception.yolo import LandmarkDetector
+from naoslam.perception.loading import load_detector
 from naoslam.shipped import OPERATING_CONF_KEY, shipped_model
 from tests.conftest import REPOSITORY, rendered_pole
 
@@ -215,7 +216,7 @@ def test_poles_slam_localises_a_recording_on_a_map_of_the_field(robot_walk, tmp_
 
 
 def test_shipped_onnx_carries_calibration_and_its_threshold():
-    from naoslam.detector import LandmarkDetector
+    from naoslam.perception.yolo import LandmarkDetector
 
     detector = LandmarkDetector()
     assert detector.conf == detector.info.extra[OPERATING_CONF_KEY]
@@ -370,7 +371,7 @@ def test_set_refuses_unknown_managed_and_out_of_range_arguments_in_one_line(pair
 def test_evaluate_uses_the_shipped_model_at_its_threshold(synth_dataset, tmp_path):
     assert main(["evaluate", "--data", str(synth_dataset), "--out", str(tmp_path / "eval")]) == 0
     metrics = read_record(tmp_path / "eval" / "metrics.json", "evaluation")
-    from naoslam.detector import LandmarkDetector
+    from naoslam.perception.yolo import LandmarkDetector
 
     assert metrics["model"] == shipped_model().name
     assert math.isclose(metrics["conf"], LandmarkDetector().conf)

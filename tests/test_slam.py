@@ -423,7 +423,7 @@ def test_optitrack_reader_gives_planar_pose(tmp_path):
 
 def test_runtime_imports_no_training_libraries():
     code = ("import sys, naoslam.ekf_slam, naoslam.localisation, naoslam.sim, naoslam.logs, naoslam.runner, "
-            "naoslam.colour_filter, naoslam.measurement; "
+            "naoslam.perception.colour_filter, naoslam.measurement; "
             "bad = [m for m in ('torch', 'ultralytics', 'albumentations', 'detector') if m in sys.modules]; "
             "sys.exit(1 if bad else 0)")
     assert subprocess.run([sys.executable, "-c", code]).returncode == 0

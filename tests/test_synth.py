@@ -210,7 +210,7 @@ def test_ray_cast_walls_floor_and_carpet_carry_photo_textures_around_their_paint
 
 
 def test_varied_paint_spreads_wide_but_every_band_still_passes_the_colour_filter_as_its_own_colour():
-    from naoslam.colour_filter import BITS, build_lookup
+    from naoslam.perception.colour_filter import BITS, build_lookup
     camera, lookup = PinholeCamera(160, 120), build_lookup(bits=8)
     rng = np.random.default_rng(11)
     green_hues = []

@@ -19,7 +19,7 @@ from detector.model_files import read_checkpoint, read_info
 from export.onnx_export import export_onnx
 from export.quantize import decode_head_nodes
 from export.run import ExportJob, ExportMismatch, ExportReport, run_export
-from naoslam.detector import LandmarkDetector
+from naoslam.perception.yolo import LandmarkDetector
 from naoslam.landmarks import CLASSES
 
 

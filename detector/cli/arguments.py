@@ -20,8 +20,8 @@ def image_size(text: str) -> tuple[int, int]:
 
 
 def confidence(text: str) -> float:
-    """A ``--conf`` value: a number between 0 and 1 (``naoslam.detector.valid_confidence``)."""
-    from naoslam.detector import valid_confidence
+    """A ``--conf`` value: a number between 0 and 1 (``naoslam.perception.yolo.valid_confidence``)."""
+    from naoslam.perception.pole_model import valid_confidence
 
     try:
         return valid_confidence(float(text))

@@ -20,7 +20,7 @@ def version_text() -> str:
 
     model = shipped_path()
     if model.is_file():
-        from naoslam.detector import LandmarkDetector
+        from naoslam.perception.yolo import LandmarkDetector
 
         digest = hashlib.sha256(model.read_bytes()).hexdigest()[:12]
         shipped = f"{model.name} (sha256 {digest}, threshold {LandmarkDetector(model).stored_conf})"

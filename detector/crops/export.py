@@ -13,9 +13,9 @@ import torch
 
 from detector.crops.network import DeployedCropNet, PoleCropNet
 from detector.model_files import write_metadata
-from naoslam.crop_detector import CROP_MODEL
+from naoslam.perception.two_stage import CROP_MODEL
 from naoslam.landmarks import CLASSES
-from naoslam.model_info import ModelInfo
+from naoslam.perception.model_info import ModelInfo
 from naoslam.shipped import OPERATING_CONF_KEY
 
 #: Largest difference allowed between onnxruntime's and PyTorch's outputs on the check crops.

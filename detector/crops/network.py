@@ -55,8 +55,9 @@ class CropArchitecture:
                    int(record["hidden"]), bool(record.get("normalise", False)))
 
 
-#: The shipped robot model's architecture.
-ARCHITECTURE = CropArchitecture()
+#: The shipped robot model's architecture: a fourth convolution at the third one's resolution, crops normalised
+#: (docs/robot-model.md, "The deciding table").
+ARCHITECTURE = CropArchitecture(channels=(16, 24, 32, 48), strides=(2, 2, 1, 2), normalise=True)
 #: The crop's size (width, height): a candidate's window (two bands by six) squeezed to half as wide as tall.
 CROP_SIZE_WH = ARCHITECTURE.size_wh
 

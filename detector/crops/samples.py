@@ -17,9 +17,9 @@ from detector.console import show_progress
 from detector.datasets.model import Dataset, Sample
 from detector.datasets.truth import load_camera_poses
 from naoslam.camera import CameraPose, PinholeCamera
-from naoslam.candidates import (WINDOW_ABOVE_JUNCTION, WINDOW_HEIGHT, CandidateFinder, cut_by_frame,
+from naoslam.perception.candidates import (WINDOW_ABOVE_JUNCTION, WINDOW_HEIGHT, CandidateFinder, cut_by_frame,
                                 window_around_box, window_at_junction)
-from naoslam.crops import Window, crop_window, to_crop
+from naoslam.perception.crops import Window, crop_window, to_crop
 from naoslam.ground import GroundView
 from naoslam.landmarks import CLASSES
 

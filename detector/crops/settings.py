@@ -17,6 +17,8 @@ class CropTrainSettings:
     threads: int = 2
     #: Stop after this many minutes of training even if epochs are left (None: run every epoch).
     minutes: float | None = None
+    #: How far each crop's white balance, contrast and saturation are moved while training (``train.augment``).
+    colour_jitter: float = 0.15
     #: Which epoch's weights are kept: ``best`` on the valid crops, or ``last`` (a valid split of a frame or two
     #: scores every epoch alike, and ``best`` would then keep the first).
     keep: str = "best"
@@ -27,6 +29,8 @@ class CropTrainSettings:
         if not (self.learning_rate > 0 and self.weight_decay >= 0):
             raise ValueError(f"learning rate {self.learning_rate} must be above 0, weight decay {self.weight_decay} "
                              "not below")
+        if not 0 <= self.colour_jitter < 0.5:
+            raise ValueError(f"colour jitter {self.colour_jitter}: give 0 (none) up to below 0.5")
         if self.keep not in ("best", "last"):
             raise ValueError(f"keep {self.keep!r}: give best or last")
         if self.minutes is not None and not self.minutes > 0:

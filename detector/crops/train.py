@@ -24,6 +24,9 @@ BOX_WEIGHT = 5.0
 GIOU_WEIGHT = 1.0
 #: Brightness is scaled by a factor drawn from this range per crop while training.
 BRIGHTNESS = (0.75, 1.25)
+#: With colour jitter ``j`` (``CropTrainSettings.colour_jitter``) each crop's channels are scaled by up to 1 +- j
+#: (white balance), its contrast and saturation by up to 1 +- 2j, and noise of ``NOISE_PER_JITTER * j`` added.
+NOISE_PER_JITTER = 0.1
 
 
 @dataclass(frozen=True)
@@ -48,15 +51,31 @@ def tensors(crops: CropSet) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     return images, torch.from_numpy(crops.classes), torch.from_numpy(np.nan_to_num(crops.boxes))
 
 
-def augment(images: torch.Tensor, boxes: torch.Tensor, generator: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
-    """Half the crops flipped left to right (with their boxes), every crop's brightness scaled."""
+def augment(images: torch.Tensor, boxes: torch.Tensor, generator: torch.Generator,
+            colour_jitter: float = 0.0) -> tuple[torch.Tensor, torch.Tensor]:
+    """Half the crops flipped left to right (with their boxes), every crop's brightness scaled; with
+    ``colour_jitter``, its white balance, contrast and saturation moved and noise added too."""
     flip = torch.rand(len(images), generator=generator) < 0.5
     images, boxes = images.clone(), boxes.clone()
     images[flip] = images[flip].flip(3)
     boxes[flip] = torch.stack([1 - boxes[flip, 2], boxes[flip, 1], 1 - boxes[flip, 0], boxes[flip, 3]], dim=1)
     low, high = BRIGHTNESS
-    gain = low + (high - low) * torch.rand(len(images), 1, 1, 1, generator=generator)
-    return (images * gain).clamp_(0, 1), boxes
+    images = images * (low + (high - low) * torch.rand(len(images), 1, 1, 1, generator=generator))
+    if colour_jitter:
+        images = _jitter_colour(images, colour_jitter, generator)
+    return images.clamp_(0, 1), boxes
+
+
+def _jitter_colour(images: torch.Tensor, jitter: float, generator: torch.Generator) -> torch.Tensor:
+    """White balance (per-channel gains), contrast and saturation moved at random per crop, and pixel noise."""
+    def factor(*shape: int, spread: float) -> torch.Tensor:
+        return 1 + spread * (2 * torch.rand(len(images), *shape, generator=generator) - 1)
+
+    mean = images.mean(dim=(1, 2, 3), keepdim=True)
+    images = ((images - mean) * factor(1, 1, 1, spread=2 * jitter) + mean) * factor(3, 1, 1, spread=jitter)
+    grey = images.mean(dim=1, keepdim=True)
+    images = grey + (images - grey) * factor(1, 1, 1, spread=2 * jitter)
+    return images + NOISE_PER_JITTER * jitter * torch.randn(images.shape, generator=generator)
 
 
 def box_iou(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
@@ -132,7 +151,7 @@ def train_crop_network(train: CropSet, valid: CropSet, settings: CropTrainSettin
         order, total, began = torch.randperm(len(images), generator=generator), 0.0, time.perf_counter()
         for i in range(0, len(order), settings.batch):
             batch = order[i:i + settings.batch]
-            batch_images, batch_boxes = augment(images[batch], boxes[batch], generator)
+            batch_images, batch_boxes = augment(images[batch], boxes[batch], generator, settings.colour_jitter)
             loss = loss_of(network(batch_images), classes[batch], batch_boxes)
             optimiser.zero_grad()
             loss.backward()

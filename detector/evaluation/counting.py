@@ -15,7 +15,7 @@ import numpy as np
 
 from detector.evaluation.results import Counts, MapScores, SweepPoint
 from detector.matching import box_iou, greedy_match, mask_box, mask_iou
-from naoslam.detections import Detection, rotated_box_of_mask
+from naoslam.perception.detections import Detection, rotated_box_of_mask
 
 MATCH_IOU = 0.5
 #: How a detection is matched to a label: by mask IoU, by box IoU, or by the band-dividing point (the colour filter).

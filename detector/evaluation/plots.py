@@ -13,7 +13,7 @@ from detector.evaluation.results import FrameCounts, SweepPoint, WidthRecall
 from detector.figures import plt, save_figure
 from detector.preview import draw_label
 from detector.atomic import write_bytes
-from naoslam.detections import Detection
+from naoslam.perception.detections import Detection
 
 COUNT_COLOURS = {"tp": "#2ca02c", "fp": "#d62728", "fn": "#ff7f0e", "tn": "#1f77b4"}
 #: BGR colours of the overlays: matched detections, false positives, missed labels.

@@ -1,5 +1,5 @@
 """The front ends ``poles evaluate`` compares, behind one interface: frame -> detections
-(``naoslam.detections.Detection``, best first): naoslam's detectors, and a trained checkpoint on PyTorch."""
+(``naoslam.perception.detections.Detection``, best first): naoslam's detectors, and a trained checkpoint on PyTorch."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -8,8 +8,8 @@ import numpy as np
 
 from detector.model_files import read_checkpoint, run_checkpoint, ultralytics_frame
 from naoslam.camera import CameraPose
-from naoslam.detections import Detection
-from naoslam.detector import load_detector
+from naoslam.perception.detections import Detection
+from naoslam.perception.loading import load_detector
 from naoslam.measurement import RangeCalibration
 from naoslam.shipped import COLOUR_FILTER, resolve_model
 

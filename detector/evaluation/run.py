@@ -25,7 +25,7 @@ from detector.evaluation.results import Confusion, Counts, ErrorStats, Evaluatio
 from detector.formats import write_record
 from naoslam.camera import NAO_HFOV_DEG
 from naoslam.landmarks import CLASSES
-from naoslam.detections import Detection
+from naoslam.perception.detections import Detection
 from naoslam.measurement import RangeCalibration, bearing_of_column
 from naoslam.shipped import COLOUR_FILTER
 

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from detector.atomic import write_text
 from detector.finetune.blend import BlendChoice
+from detector.finetune.budget import JobPlan, describe
 from detector.finetune.judge import Judgement
 from detector.finetune.results import ExportedModel, FinetuneResult, FinetuneStages
 from detector.html_page import image, page, percent, table
@@ -20,7 +21,8 @@ def write_report(result: FinetuneResult, timings: list[StageRecord]) -> Path:
     stages = result.stages
     parts = [f"<h1>poles finetune: {html.escape(str(stages.dataset.source))}</h1>",
              f"<p class='note'>The shipped {html.escape(result.recipe.model)} model, fine-tuned on your frames.</p>",
-             _verdict(stages.evaluate), _evaluation(stages.evaluate), _stages(timings, result.recipe.settings()),
+             _verdict(stages.evaluate), _evaluation(stages.evaluate),
+             _stages(timings, result.recipe.settings(), stages.plan),
              _data(stages), _training(stages.train), _blend(stages.blend), _export(stages.export)]
     return write_text(result.report, page("poles finetune report", parts))
 
@@ -66,11 +68,17 @@ def _evaluation(judgement: Judgement) -> str:
     return f"<h2>Evaluation</h2><p class='note'>{note}</p>" + table(header, rows) + folders
 
 
-def _stages(timings: list[StageRecord], settings: dict) -> str:
-    rows = [[r.name, r.status + ("" if r.ran else " (reused)"), f"{r.seconds:.0f}"] for r in timings]
+def _stages(timings: list[StageRecord], settings: dict, plan: JobPlan) -> str:
+    planned = {"dataset": ("start", "dataset"), "train": ("training start", "train")}
+    rows = [[r.name, r.status + ("" if r.ran else " (reused)"), f"{r.seconds:.0f}",
+             f"{sum(plan.seconds.get(part, 0.0) for part in planned.get(r.name, (r.name,))):.0f}"] for r in timings]
     recipe = [[key.replace("_", " "), value] for key, value in settings.items()]
-    return ("<h2>Stages and time taken</h2>" + table(["stage", "status", "seconds"], rows)
-            + f"<p>Total {sum(r.seconds for r in timings) / 60:.1f} min.</p>" + table(["recipe", "value"], recipe))
+    cuts = "".join(f"<li>{html.escape(cut)}</li>" for cut in plan.cuts)
+    return ("<h2>Stages and time taken</h2>"
+            f"<p>{html.escape(describe(plan))}.</p>" + (f"<p>Cut to fit:</p><ul>{cuts}</ul>" if cuts else "")
+            + table(["stage", "status", "seconds", "planned"], rows)
+            + f"<p>Total {sum(r.seconds for r in timings) / 60:.1f} min of the {plan.minutes:g} asked for.</p>"
+            + table(["recipe", "value"], recipe))
 
 
 def _swatch(rgb: tuple[float, float, float]) -> str:

@@ -1,7 +1,7 @@
 """Band paint that varies between poles and prints, yet always stays the colour it names.
 
 What still counts as pink, blue, yellow or green is defined once, by the colour filter's HSV ranges
-(``naoslam.colour_filter.HSV_RANGES``); varied paint is drawn inside that box, spread across it.
+(``naoslam.perception.colour_filter.HSV_RANGES``); varied paint is drawn inside that box, spread across it.
 """
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from functools import cache
 import numpy as np
 
 from detector.synth.objects import BAND_RGB, RGB
-from naoslam.colour_filter import HSV_RANGES
+from naoslam.perception.colour_filter import HSV_RANGES
 
 
 @dataclass(frozen=True)

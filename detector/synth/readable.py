@@ -3,7 +3,7 @@
 Varied paint, a backdrop's colour cast, back light and the camera's white balance can together turn a blue band green
 in the pixels. Such a pole's label is true of the world but cannot be read from the frame, so no model can learn it:
 the renderer draws those frames again (``generate.render_one``). A band's colour is read as the hue of its coloured
-pixels and named by the nearest of the colour filter's hue ranges (``naoslam.colour_filter.HSV_RANGES``), the same
+pixels and named by the nearest of the colour filter's hue ranges (``naoslam.perception.colour_filter.HSV_RANGES``), the same
 boxes the varied paint is drawn in. A band too dark or too grey to carry a hue gives no verdict: it contradicts no
 label.
 """
@@ -12,7 +12,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from naoslam.colour_filter import HSV_RANGES
+from naoslam.perception.colour_filter import HSV_RANGES
 
 #: A pixel carries a hue when its OpenCV saturation and value reach these (below them the hue is mostly noise).
 MIN_SATURATION = 60

@@ -1,4 +1,4 @@
-"""The robot's two-stage front end: pink candidates at full resolution (:mod:`naoslam.candidates`), then one batched
+"""The robot's two-stage front end: pink candidates at full resolution (:mod:`naoslam.perception.candidates`), then one batched
 call of a small crop network that names each candidate's pole (or rejects it) and regresses the pole's box in the
 crop. No masks: each detection is a box (``Detection.from_box``), which is all range and bearing need.
 
@@ -14,13 +14,13 @@ import cv2
 import numpy as np
 
 from naoslam.camera import CameraPose
-from naoslam.candidates import MAX_CANDIDATES, CandidateFinder, window_around_box
-from naoslam.crops import crop_batch, to_frame
-from naoslam.detections import Detection
-from naoslam.engines import OpenVinoForward
+from naoslam.perception.candidates import MAX_CANDIDATES, CandidateFinder, window_around_box
+from naoslam.perception.crops import crop_batch, to_frame
+from naoslam.perception.detections import Detection
+from naoslam.perception.engines import OpenVinoForward
 from naoslam.ground import GroundView
-from naoslam.model_info import ModelInfo
-from naoslam.pole_model import PoleModel, check_options
+from naoslam.perception.model_info import ModelInfo
+from naoslam.perception.pole_model import PoleModel, check_options
 from naoslam.shipped import DEFAULT_CONF, resolve_model
 
 #: ``ModelInfo.model`` of a crop network.

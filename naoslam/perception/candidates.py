@@ -11,7 +11,7 @@ rest. Two kinds of anchor follow:
   hazed or back-lit paint): the blob's height or width gives the band's size.
 
 Each anchor becomes a window around where its pole can stand, six bands tall and three wide, junctions first; the
-windows go to the crop network (:mod:`naoslam.crop_detector`), which names the pole or rejects the window and
+windows go to the crop network (:mod:`naoslam.perception.two_stage`), which names the pole or rejects the window and
 regresses the pole's box. The colour tests are loose on purpose - a window the network rejects costs a fraction of a
 millisecond, a pole without one is lost.
 """
@@ -27,7 +27,7 @@ from naoslam.landmarks import PoleGeometry
 
 #: Loose colours in OpenCV's HSV (H 0..179): pink's (hue low, hue high) ranges, and one range from yellow over green
 #: to blue for the other band, each with a minimum saturation and value. Looser than the colour filter's
-#: (``naoslam.colour_filter.HSV_RANGES``): dark, hazed and back-lit paint must still read.
+#: (``naoslam.perception.colour_filter.HSV_RANGES``): dark, hazed and back-lit paint must still read.
 PINK_HSV = (((135, 179), (0, 4)), 60, 30)
 BAND_HSV = ((15, 128), 40, 15)
 #: Frame rows per scanned row at 480 rows (scaled with the frame's height): a pole 9 m away shows bands 7 rows tall.
@@ -94,7 +94,7 @@ def row_step(frame_height: int) -> int:
 def scan_grid_bgr(frame: np.ndarray, rows: slice) -> np.ndarray:
     """The scanned grid of a frame as BGR uint8: ``rows``, one sample per pixel pair. A BGR frame gives each pair's
     first pixel; a YUYV buffer (HxWx2) each pair's first luma with the pair's own chroma, converted as full-range
-    BT.601 (``naoslam.frames``)."""
+    BT.601 (``naoslam.perception.frames``)."""
     if frame.ndim == 3 and frame.shape[2] == 2:
         packed = frame[rows]
         ycrcb = np.empty((packed.shape[0], packed.shape[1] // 2, 3), np.uint8)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from naoslam.frames import bgr_frame
+from naoslam.perception.frames import bgr_frame
 
 Window = tuple[float, float, float, float]
 

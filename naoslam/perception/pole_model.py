@@ -6,12 +6,12 @@ from pathlib import Path
 
 import onnxruntime as ort
 
-from naoslam.engines import ENGINES
+from naoslam.perception.engines import ENGINES
 from naoslam.camera import NAO_HFOV_DEG, CameraPose, PinholeCamera
 from naoslam.cores import usable_cores
 from naoslam.ground import GroundView, ground_gate
 from naoslam.measurement import RangeCalibration
-from naoslam.model_info import ModelInfo
+from naoslam.perception.model_info import ModelInfo
 from naoslam.shipped import OPERATING_CONF_KEY, model_argument, shipped_model
 
 

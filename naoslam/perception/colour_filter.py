@@ -17,8 +17,8 @@ import cv2
 import numpy as np
 
 from naoslam.camera import CameraPose
-from naoslam.detections import Detection
-from naoslam.frames import bgr_frame
+from naoslam.perception.detections import Detection
+from naoslam.perception.frames import bgr_frame
 from naoslam.ground import GroundView
 from naoslam.measurement import RangeCalibration
 
@@ -90,7 +90,7 @@ class ColourFilter:
         """The shipped model's calibration, whose colour law is the colour filter's on the Nao's camera."""
         if self._calibration is None:
             # Deferred: reading the shipped model's metadata loads onnxruntime, which the filter alone never needs.
-            from naoslam.pole_model import shipped_calibration
+            from naoslam.perception.pole_model import shipped_calibration
 
             self._calibration = self.check_calibration(shipped_calibration())
         return self._calibration

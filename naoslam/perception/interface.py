@@ -8,7 +8,7 @@ from typing import Protocol
 import numpy as np
 
 from naoslam.camera import CameraPose
-from naoslam.detections import Detection
+from naoslam.perception.detections import Detection
 from naoslam.ground import GroundView
 from naoslam.measurement import RangeCalibration
 

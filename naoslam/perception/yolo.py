@@ -15,17 +15,14 @@ import cv2
 import numpy as np
 
 from naoslam.camera import CameraPose
-from naoslam.colour_filter import ColourFilter
-from naoslam.detections import Detection, mask_centre_column, rotated_box_of_mask
-from naoslam.engines import OpenVinoForward
-from naoslam.frames import bgr_frame
 from naoslam.ground import GroundView
 from naoslam.landmarks import CLASSES
-from naoslam.model_info import ModelInfo
-from naoslam.crop_detector import CropDetector, is_crop_model
-from naoslam.pole_model import PoleModel, check_classes, check_options, load_session, valid_confidence
-from naoslam.pole_detector import PoleDetector
-from naoslam.shipped import COLOUR_FILTER, DEFAULT_CONF, model_argument, resolve_model
+from naoslam.perception.detections import Detection, mask_centre_column, rotated_box_of_mask
+from naoslam.perception.engines import OpenVinoForward
+from naoslam.perception.frames import bgr_frame
+from naoslam.perception.pole_model import PoleModel, check_classes, check_options, valid_confidence
+from naoslam.perception.two_stage import is_crop_model
+from naoslam.shipped import DEFAULT_CONF, model_argument, resolve_model
 
 #: Ultralytics' letterbox fill value.
 PAD_VALUE = 114
@@ -221,34 +218,6 @@ class LandmarkDetector(PoleModel):
         centre_column = mask_centre_column(mask, origin) if rotated else float((frame_box[0] + frame_box[2]) / 2)
         return Detection(class_id, self.info.classes[class_id], score, tuple(float(v) for v in frame_box), mask,
                          origin, rotated, centre_column)
-
-
-def load_detector(model: Path | str | None = "shipped", conf: float | None = None, threads: int | None = None,
-                  engine: str = "onnxruntime", input_width: int | None = None,
-                  classes: tuple[str, ...] | None = CLASSES) -> PoleDetector:
-    """The detector for a model: ``shipped`` (also for None), ``shipped-int8``, ``shipped-robot``, ``colour-filter``
-    or an ONNX path. A YOLOv8-seg model gives a ``LandmarkDetector``, a two-stage robot model a ``CropDetector``, the
-    name ``colour-filter`` the thesis's ``ColourFilter``; all are called the same way (a ``PoleDetector``: frame and
-    optional camera pose or ground view in, ``Detection`` objects out)."""
-    check_options(engine, threads)
-    if model == COLOUR_FILTER:
-        if input_width is not None:
-            raise ValueError(f"the colour filter reads the frame's own pixels - leave out the input width "
-                             f"({input_width})")
-        return ColourFilter()
-    path = resolve_model("shipped" if model is None else model)
-    session = load_session(path, threads)
-    info = ModelInfo.from_metadata(session.get_modelmeta().custom_metadata_map, path)
-    if not is_crop_model(info):
-        return LandmarkDetector(path, conf=conf, threads=threads, engine=engine, input_width=input_width,
-                                classes=classes, session=session)
-    if input_width is not None:
-        raise ValueError(f"{path}: a two-stage robot model runs on the frame's own pixels - leave out the input "
-                         f"width ({input_width})")
-    detector = CropDetector(path, conf=None if conf is None else valid_confidence(conf), threads=threads,
-                            engine=engine, session=session)
-    check_classes(detector, classes)
-    return detector
 
 
 def _shifted(detection: Detection, rows: int) -> Detection:
