@@ -245,6 +245,8 @@ def test_the_plan_fits_a_large_export_into_its_minutes_with_less_work_that_scale
     assert large.copies < recipe.copies and large.rehearsal_frames < recipe.rehearsal_frames(1400 * 8)
     assert any("augmented copies of each of your 1,400 training frames, not 7" in cut for cut in large.cuts)
     assert large.evaluation_frames <= small.evaluation_frames
+    assert large.blend_frames < 200 and any(f"on {large.blend_frames} of your 200 valid frames" in cut
+                                            for cut in large.cuts)
 
 
 def test_a_budget_below_the_least_work_is_refused_naming_the_smallest_that_plans():

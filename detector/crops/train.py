@@ -166,7 +166,7 @@ def train_crop_network(train: CropSet, valid: CropSet, settings: CropTrainSettin
         if result.score > best_score or settings.keep == "last":
             best_score, best_state = result.score, {k: v.clone() for k, v in network.state_dict().items()}
         if settings.minutes is not None and time.perf_counter() - started > 60 * settings.minutes:
-            log(f"stopped after {epoch} epochs: the {settings.minutes:g} minutes are spent")
+            log(f"stopped after {epoch} epochs: the {settings.minutes:.1f} minutes are spent")
             break
     network.load_state_dict(best_state)
     return network.eval(), history

@@ -303,7 +303,7 @@ def _print_headlines(results: DemoResult) -> None:
         row = front_end.evaluation
         table.add_row(f"{row.model} on held-out synthetic frames",
                       f"precision {100 * row.precision:.1f} %, recall {100 * row.recall:.1f} %"
-                      + (f", mask IoU {row.mean_iou:.3f}" if row.mean_iou is not None else ""))
+                      + (f", {row.matching} IoU {row.mean_iou:.3f}" if row.mean_iou is not None else ""))
     gain = results.evaluate.against_shipped
     change = gain.change
     table.add_row(f"{gain.model} against {gain.reference}",

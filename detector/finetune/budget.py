@@ -195,7 +195,8 @@ def _cuts(wanted: _Work, work: _Work, frames: SplitCounts, recipe: FinetuneRecip
     if work.held_out < wanted.held_out:
         cuts.append(f"the models judged on {work.held_out} of your {wanted.held_out} held-out frames")
     if work.blend < wanted.blend:
-        cuts.append(f"each blend scored on {work.blend} of your {wanted.blend} valid frames")
+        cuts.append(f"the training validated and each blend scored on {work.blend} of your {wanted.blend} valid "
+                    "frames")
     return tuple(cuts)
 
 
@@ -206,9 +207,9 @@ def _seconds(work: _Work, frames: SplitCounts, costs: UnitCosts, network: str,
     parallel = max(costs.workers, 1)
     trained = frames.train * (1 + work.copies) + work.rehearsal
     if network == "crops":
-        training_start = TRAINING_START_S[network] + CROP_PASS * costs.decode * (trained + frames.valid)
-    else:  # Ultralytics validates on the valid frames after the last epoch
-        training_start = TRAINING_START_S[network] + frames.valid * costs.judge + 0.002 * trained
+        training_start = TRAINING_START_S[network] + CROP_PASS * costs.decode * (trained + work.blend)
+    else:  # Ultralytics validates on the valid frames the blend is scored on after the last epoch
+        training_start = TRAINING_START_S[network] + work.blend * costs.judge + 0.002 * trained
     judged = JUDGED_MODELS * (work.held_out + RENDERED_SETS * work.evaluation)
     return {"start": FIXED_S,
             "dataset": 2 * total * costs.decode,

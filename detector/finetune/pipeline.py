@@ -118,9 +118,9 @@ def _stages(ledger: StageLedger, annotated: Path, out: Path, recipe: FinetuneRec
                               backdrops=[str(path) for path in backdrops], backdrop_share=recipe.backdrop_share)
     rendered = ledger.run("rehearsal", rehearsal_key, [rehearsal / "data.yaml"] if frames else [],
                           lambda: _render_rehearsal(rehearsal, paint, frames, recipe, backdrops), RehearsalSummary)
-    mix_key = stage_key(augment=augment_key, rehearsal=rehearsal_key)
+    mix_key = stage_key(augment=augment_key, rehearsal=rehearsal_key, valid=plan.blend_frames)
     mix = ledger.run("mix", mix_key, [mixed / "data.yaml"],
-                     lambda: _mix(augmented, rehearsal if frames else None, mixed), SplitCounts)
+                     lambda: _mix(augmented, rehearsal if frames else None, mixed, plan.blend_frames), SplitCounts)
     training = {k: v for k, v in recipe.settings().items() if k != "evaluation_frames"}
     train_key = stage_key(mix=mix_key, recipe=training, start=file_fingerprint(recipe.start.weights))
     spent = sum(record.seconds for record in ledger.timings()) / 60
@@ -184,13 +184,14 @@ def _render_rehearsal(folder: Path, paint: TeamPaint, frames: int, recipe: Finet
     return RehearsalSummary(frames, len(backdrops), folder / "preview.png")
 
 
-def _mix(augmented: Path, rehearsal: Path | None, out: Path) -> SplitCounts:
+def _mix(augmented: Path, rehearsal: Path | None, out: Path, valid_frames: int | None) -> SplitCounts:
     """The training set: the augmented export's train frames and every rehearsal frame; the export's valid frames
-    (never its test frames) to validate on. Images are linked, not copied."""
+    (its first ``valid_frames``, the ones the blend is scored on; never its test frames) to validate on. Images are
+    linked, not copied."""
     team = load_dataset(augmented)
     rendered = load_dataset(rehearsal).samples if rehearsal is not None else []
     with DatasetWriter(out, force=True, protect=team.input_folders()) as writer:
-        for sample in team.split("train") + team.split("valid"):
+        for sample in team.split("train") + team.split("valid")[:valid_frames]:
             writer.add(sample.split, sample.image.name, sample.image, sample.instances, link=True)
         for sample in rendered:
             writer.add("train", f"rehearsal_{sample.image.name}", sample.image, sample.instances, link=True)
