@@ -139,7 +139,7 @@ def main() -> None:
     parser.add_argument("repeats", type=int, nargs="?", default=3)
     parser.add_argument("--before", help="the robot model this one replaces (an ONNX file), timed beside it")
     args = parser.parse_args()
-    models = MODELS + ([("robot-p4-seg (before)", args.before)] if args.before else [])
+    models = MODELS + ([("the one before", args.before)] if args.before else [])
     capped, uncapped = speed_table(models, args.frames, args.repeats)
     print(f"{args.frames} walk frames (640x480), {args.repeats} passes, one thread; ms per frame. Capped: OpenVINO "
           "(oneDNN SSE4.1), numpy (no AVX2/AVX-512 dispatch) and OpenCV (no AVX/AVX2/FMA3/AVX-512), checked in the "

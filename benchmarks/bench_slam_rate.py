@@ -47,7 +47,7 @@ def main() -> None:
     parser.add_argument("--maybe", type=float, default=0.4, help="the two-stage front end's maybe tier's lower "
                         "threshold (default 0.4)")
     args = parser.parse_args()
-    models = [("two-stage", "shipped-robot")] + ([("robot-p4-seg (before)", args.before)] if args.before else []) + \
+    models = [("two-stage", "shipped-robot")] + ([("the one before", args.before)] if args.before else []) + \
         [("accurate INT8", "shipped-int8")]
     capped, _ = speed_table(models, 10, 2)
     camera_hz = SimConfig().frame_hz
