@@ -106,7 +106,6 @@ def test_demo_runs_every_stage_writes_the_report_and_resumes(tmp_path, monkeypat
     for row in speed.rows:
         assert (row.capped_ms is not None and row.capped_ms > 0) or "not timed" in row.note
         assert row.uncapped_ms is not None and row.uncapped_ms > 0
-    assert speed.rows[1].uncapped_ms < speed.rows[0].uncapped_ms  # the robot front end is the fast one
     # The shipped model as installed is counted beside the trained one, and the report says what training bought.
     f1 = {row.evaluation.model: row.evaluation.f1 for row in written}
     gain = evaluated.against_shipped
