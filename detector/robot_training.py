@@ -19,7 +19,7 @@ from detector.crops.train import EpochResult, load_checkpoint, save_checkpoint, 
 from detector.datasets.intake import open_dataset
 from detector.datasets.model import Dataset
 from detector.outputs import check_output_folder, output_folder
-from detector.datasets.truth import load_camera_poses, load_truth
+from detector.datasets.truth import ImageTruth, load_camera_poses, load_truth
 from detector.evaluation.counting import best_threshold, confidence_sweep
 from detector.evaluation.predictors import RuntimePredictor
 from detector.evaluation.run import evaluate_frames
@@ -51,22 +51,21 @@ def crop_sets(datasets: list[Dataset], split: str, seed: int, progress: bool = T
                                 for i, dataset in enumerate(datasets)])
 
 
-def open_training_data(data: list[Path], progress: bool = True) -> list[Dataset]:
-    """Every dataset through the intake every command uses (``poles check``'s rules, images decoded), its truth
-    read too, so that whatever refuses it does so before the crops are cut and the network trained."""
+def open_training_data(data: list[Path], progress: bool = True) -> list[tuple[Dataset, dict[str, ImageTruth]]]:
+    """Every dataset through the intake every command uses (``poles check``'s rules, images decoded) with its truth,
+    so that whatever refuses it does so before the crops are cut and the network trained."""
     datasets = [open_dataset(root, progress=progress) for root in data]
-    for dataset in datasets:
-        load_truth(dataset)
-    return datasets
+    return [(dataset, load_truth(dataset)) for dataset in datasets]
 
 
-def valid_threshold(model: Path, datasets: list[Dataset], progress: bool = True) -> tuple[float, float]:
+def valid_threshold(model: Path, opened: list[tuple[Dataset, dict[str, ImageTruth]]],
+                    progress: bool = True) -> tuple[float, float]:
     """The confidence threshold of the best F1 over every dataset's valid frames (each with its camera pose where
     annotations.json records one, as on the robot), and that F1."""
     predictor = RuntimePredictor(model)
     images = []
-    for dataset in datasets:
-        images += evaluate_frames(predictor, dataset.split("valid"), load_truth(dataset), "choosing the threshold",
+    for dataset, truth in opened:
+        images += evaluate_frames(predictor, dataset.split("valid"), truth, "choosing the threshold",
                                   progress, poses=load_camera_poses(dataset))
     sweep = confidence_sweep(images)
     threshold = best_threshold(sweep) or EXPORT_CONF
@@ -100,7 +99,8 @@ def train_robot_front_end(data: list[Path], out: Path, settings: CropTrainSettin
                           progress: bool = True) -> RobotTraining:
     """Train the crop network on ``data`` into the run folder ``out``; returns its summary (also in history.json)."""
     data = [Path(root) for root in data]
-    datasets = open_training_data(data, progress)
+    opened = open_training_data(data, progress)
+    datasets = [dataset for dataset, _ in opened]
     inputs = (*protect, *(folder for dataset in datasets for folder in dataset.input_folders()))
     check_output_folder(out, force, inputs, RUN_KIND)
     start = load_checkpoint(weights) if weights is not None else None
@@ -120,7 +120,7 @@ def train_robot_front_end(data: list[Path], out: Path, settings: CropTrainSettin
                              " train frames here; the shipped model learnt from 7,000) or for more --epochs")
         save_checkpoint(network, folder / CHECKPOINT, history, settings)
         difference = export_crop_network(network, folder / MODEL, valid.crops[:256], EXPORT_CONF)
-        threshold, f1 = valid_threshold(folder / MODEL, datasets, progress)
+        threshold, f1 = valid_threshold(folder / MODEL, opened, progress)
         training = {"minutes": round((time.perf_counter() - began) / 60, 1), "hardware": machine(),
                     "epochs": len(history), "frames": sum(len(dataset.split("train")) for dataset in datasets)}
         add_metadata(folder / MODEL, operating_conf=threshold, training=training)

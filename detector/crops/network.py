@@ -5,6 +5,7 @@ convolution over the frame. Optionally each crop's brightness and contrast are n
 exposure and back light move the input less."""
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 
 import torch
@@ -38,10 +39,7 @@ class CropArchitecture:
     @property
     def reduction(self) -> int:
         """How many crop pixels one cell of the last convolution spans along each side."""
-        reduction = 1
-        for stride in self.strides:
-            reduction *= stride
-        return reduction
+        return math.prod(self.strides)
 
     def to_dict(self) -> dict:
         return {key: list(value) if isinstance(value, tuple) else value for key, value in asdict(self).items()}
