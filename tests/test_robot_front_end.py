@@ -17,12 +17,15 @@ from hypothesis import strategies as st
 
 from detector.formats import read_record
 from detector.crops.network import CropArchitecture
-from detector.crops.samples import NO_POLE, crops_of_dataset, pole_for
+from detector.crops.samples import NO_POLE, coverage, crops_of_dataset, ground_view, label_boxes, pole_for
 from detector.datasets.io import load_dataset
+from detector.datasets.truth import load_camera_poses
 from detector.evaluation.counting import evaluate_image
 from detector.evaluation.results import Counts
+from detector.synth.backdrops import scan_backdrops
+from detector.synth.generate import SynthJob, generate_dataset
 from detector.synth.render import render_scene
-from detector.synth.scene import calibration_scene
+from detector.synth.scene import SceneConfig, calibration_scene
 from naoslam.camera import PinholeCamera
 from naoslam.perception.candidates import CandidateFinder, window_around_box
 from naoslam.perception.two_stage import CropDetector
@@ -78,6 +81,40 @@ def test_with_the_pose_only_the_band_below_the_horizon_is_searched():
     above[:top] = (180, 60, 230)  # pink sky: no pole can stand there
     assert all(c.anchor[1] >= top for c in CandidateFinder()(above, view))
     assert any(c.anchor[1] < top for c in CandidateFinder()(above))
+
+
+def test_without_the_pose_a_pole_read_by_its_pink_band_alone_is_not_crowded_out_by_junctions_of_clutter():
+    image, box, _ = _rendered("pb", 3.0, 0.0, seed=3)
+    x0, y0, x1, y1 = (int(v) for v in box)
+    band = (y1 - y0) // 4
+    image[y0 + band:y0 + 2 * band + 2, x0:x1] = 50  # the blue band too dark to read: no junction, a pink blob
+    for column in range(8):
+        for row in range(2):
+            x, y = 20 + column * 78, 20 + row * 80
+            image[y:y + 12, x:x + 6] = (180, 60, 230)  # a thin pink mark on a wide blue one: a junction each
+            image[y + 12:y + 24, x - 20:x + 26] = (230, 160, 60)
+    found = CandidateFinder(max_candidates=8)(image)
+    assert sum(c.kind == "junction" for c in found) > 4
+    assert any(pole_for(c.window, [box], image.shape[:2]) == 0 for c in found)
+
+
+def test_with_the_pose_the_candidates_cover_back_lit_poles(tmp_path):
+    rng = np.random.default_rng(1)
+    (tmp_path / "backgrounds").mkdir()
+    ramp = np.linspace(0, 1, 640)[None, :, None] * rng.uniform(40, 120, 3) + rng.uniform(40, 120, 3)
+    room = np.clip(ramp + rng.normal(0, 12, (480, 640, 3)), 0, 255).astype(np.uint8)
+    cv2.imwrite(str(tmp_path / "backgrounds" / "room.jpg"), room)
+    job = SynthJob(24, seed=7, backgrounds=scan_backdrops(tmp_path / "backgrounds"), backdrop_share=1.0,
+                   config=SceneConfig(backlight_share=1.0))
+    dataset = load_dataset(generate_dataset(tmp_path / "backlit", job, workers=1, progress=False))
+    poses = load_camera_poses(dataset)
+    covered = []
+    for sample in dataset.samples:
+        image = cv2.imread(str(sample.image))
+        found = CandidateFinder()(image, ground_view(poses[sample.image.name], image.shape[:2]))
+        covered += [any(coverage(c.window, box) >= 0.7 for c in found)
+                    for box in label_boxes(sample, image.shape[1], image.shape[0])]
+    assert len(covered) >= 20 and np.mean(covered) >= 0.75, covered
 
 
 def test_the_camera_s_yuyv_buffer_gives_the_candidates_of_its_bgr_frame():

@@ -10,10 +10,12 @@ rest. Two kinds of anchor follow:
 - a **pink blob**, the pink samples joined into blobs, for poles whose other band does not read as a colour (dark,
   hazed or back-lit paint): the blob's height or width gives the band's size.
 
-Each anchor becomes a window around where its pole can stand, six bands tall and three wide, junctions first; the
-windows go to the crop network (:mod:`naoslam.perception.two_stage`), which names the pole or rejects the window and
-regresses the pole's box. The colour tests are loose on purpose - a window the network rejects costs a fraction of a
-millisecond, a pole without one is lost.
+Each anchor becomes a window around where its pole can stand, six bands tall and two wide; with the camera's pose
+junctions come first, without it the two kinds take turns (a frame seen whole holds many junctions of clutter, and
+half its poles are framed best by their pink band). The windows go to the crop network
+(:mod:`naoslam.perception.two_stage`), which names the pole or rejects the window and regresses the pole's box. The
+colour tests are loose on purpose - a window the network rejects costs a fraction of a millisecond, a pole without
+one is lost.
 """
 from __future__ import annotations
 
@@ -28,7 +30,7 @@ from naoslam.landmarks import PoleGeometry
 #: Loose colours in OpenCV's HSV (H 0..179): pink's (hue low, hue high) ranges, and one range from yellow over green
 #: to blue for the other band, each with a minimum saturation and value. Looser than the colour filter's
 #: (``naoslam.perception.colour_filter.HSV_RANGES``): dark, hazed and back-lit paint must still read.
-PINK_HSV = (((135, 179), (0, 4)), 60, 30)
+PINK_HSV = (((135, 179), (0, 4)), 40, 20)
 BAND_HSV = ((15, 128), 40, 15)
 #: Frame rows per scanned row at 480 rows (scaled with the frame's height): a pole 9 m away shows bands 7 rows tall.
 ROW_STEP_AT_480 = 4
@@ -45,7 +47,7 @@ JOIN_KERNEL = np.ones((2, 5), np.uint8)
 MAX_WIDTH_RATIO = 3.0
 #: Windows overlapping more than this (IoU) frame the same pole; the later one is dropped.
 DUPLICATE_IOU = 0.5
-#: Most candidates kept per frame (junctions first, then the largest blobs): the crop network's batch.
+#: Most candidates kept per frame (the first in the finder's order): the crop network's batch.
 MAX_CANDIDATES = 24
 #: A band is about 1.17 times as tall as the pole is wide (10.5 cm over 9 cm).
 BAND_PER_WIDTH = 1.17
@@ -150,9 +152,9 @@ class CandidateFinder:
         self.pole = pole
 
     def __call__(self, frame: np.ndarray, view: GroundView | None = None) -> list[Candidate]:
-        """Candidates in a BGR or YUYV frame, junctions first, then pink blobs, each kind best first (with a view:
-        the anchor's width nearest a pole's there; without: the widest); only rows below the horizon are scanned
-        when the ``view`` gives one."""
+        """Candidates in a BGR or YUYV frame, each kind best first (with a view: the anchor's width nearest a pole's
+        there; without: the widest); with a ``view``, junctions first, then pink blobs, and only rows below the
+        horizon are scanned; without one, a junction and a pink blob in turn."""
         if frame.shape[0] < MIN_FRAME_SIDE or frame.shape[1] < MIN_FRAME_SIDE:
             return []
         top = view.band_top() if view is not None else 0
@@ -161,11 +163,14 @@ class CandidateFinder:
         joined = cv2.morphologyEx(junction_mask(pink, band), cv2.MORPH_CLOSE, JOIN_KERNEL)
         ranked = [(kind, *self._windows(kind, self._anchors(kind, _blobs(mask), top, step), view))
                   for kind, mask in (("junction", joined), ("pink", pink))]
-        kinds = [kind for kind, windows, _ in ranked for _ in windows]
+        kinds = np.array([kind for kind, windows, _ in ranked for _ in windows])
         windows = np.concatenate([windows for _, windows, _ in ranked])
         anchors = np.concatenate([anchors for _, _, anchors in ranked])
         if not len(windows):
             return []
+        if view is None:
+            order = _interleaved(len(ranked[0][1]), len(ranked[1][1]))
+            kinds, windows, anchors = kinds[order], windows[order], anchors[order]
         sizes = windows[:, 2:] - windows[:, :2]
         ranks = (len(windows) - np.arange(len(windows))).astype(float)  # earlier is better
         kept = cv2.dnn.NMSBoxes(np.concatenate([windows[:, :2], sizes], 1).tolist(), ranks.tolist(), 0.0,
@@ -212,6 +217,13 @@ class CandidateFinder:
         upper = view.pixels_per_metre(u, v, self.pole.divide_height + band_m / 2)
         lower = view.pixels_per_metre(u, v, self.pole.divide_height - band_m / 2)
         return band_m * np.sqrt(upper * lower)
+
+
+def _interleaved(first: int, second: int) -> np.ndarray:
+    """Indices that take turns between a list of ``first`` items and the ``second`` after it (0, first, 1, first + 1,
+    ...), the longer list's rest at the end."""
+    mine, theirs = np.arange(first), np.arange(second)
+    return np.argsort(np.concatenate([mine + np.minimum(mine, second), theirs + np.minimum(theirs + 1, first)]))
 
 
 def _blobs(mask: np.ndarray) -> np.ndarray:
