@@ -27,7 +27,8 @@ from detector.synth.generate import SynthJob, generate_dataset
 from detector.synth.render import render_scene
 from detector.synth.scene import SceneConfig, calibration_scene
 from naoslam.camera import PinholeCamera
-from naoslam.perception.candidates import CandidateFinder, window_around_box
+from naoslam.perception.candidates import (BAND_PER_WIDTH, MAX_CANDIDATES, MAX_CANDIDATES_WITHOUT_POSE,
+                                           CandidateFinder, window_around_box)
 from naoslam.perception.two_stage import CropDetector
 from naoslam.perception.crops import crop_window, to_crop, to_frame
 from naoslam.perception.detections import Detection
@@ -96,6 +97,42 @@ def test_without_the_pose_a_pole_read_by_its_pink_band_alone_is_not_crowded_out_
     found = CandidateFinder(max_candidates=8)(image)
     assert sum(c.kind == "junction" for c in found) > 4
     assert any(pole_for(c.window, [box], image.shape[:2]) == 0 for c in found)
+
+
+def _pole_width_at(view: GroundView, u: float, v: float) -> float:
+    """The width in pixels of a pole whose line between the bands shows at (u, v)."""
+    return CandidateFinder()._pose_bands("junction", view, np.array([u]), np.array([v]))[0] / BAND_PER_WIDTH
+
+
+def test_with_the_pose_a_piece_of_a_near_pole_s_junction_outranks_clutter_too_wide_for_its_place():
+    _, _, view = _rendered("pb", 3.0, 0.0, seed=3)
+    image = np.full((480, 640, 3), 128, np.uint8)
+    u, v = 420, 400  # a near pole's line between its bands
+    width = _pole_width_at(view, u, v)
+    band = int(BAND_PER_WIDTH * width)
+    x0, x1 = int(u - width / 2), int(u + width / 2)
+    image[v - band:v, x0:x1] = (180, 60, 230)  # its pink band whole
+    image[v:v + 6, u - 3:u + 3] = (230, 160, 60)  # its blue band reads in one narrow piece under it
+    box = (float(x0), float(v - band), float(x1), float(v + 2 * band))
+    clutter_u, clutter_v = 100, 300  # a pink over blue edge 2.5 times as wide as a pole there
+    wide = int(2.5 * _pole_width_at(view, clutter_u, clutter_v))
+    image[clutter_v - 8:clutter_v, clutter_u:clutter_u + wide] = (180, 60, 230)
+    image[clutter_v:clutter_v + 8, clutter_u:clutter_u + wide] = (230, 160, 60)
+    first = CandidateFinder(max_candidates=1)(image, view)
+    assert pole_for(first[0].window, [box], image.shape[:2]) == 0, first
+
+
+def test_a_busy_frame_keeps_more_windows_with_the_pose_than_without_and_a_cap_asked_for_holds_both():
+    _, _, view = _rendered("pb", 3.0, 0.0, seed=3)
+    image = np.full((480, 640, 3), 128, np.uint8)
+    for row in range(4):
+        for column in range(16):  # 64 small pink over blue marks just below the horizon
+            x, y = 8 + column * 40, view.band_top() + 12 + row * 24
+            image[y - 6:y, x:x + 8] = (180, 60, 230)
+            image[y:y + 6, x:x + 8] = (230, 160, 60)
+    assert (len(CandidateFinder()(image, view)), len(CandidateFinder()(image))) == \
+        (MAX_CANDIDATES, MAX_CANDIDATES_WITHOUT_POSE)
+    assert (len(CandidateFinder(10)(image, view)), len(CandidateFinder(10)(image))) == (10, 10)
 
 
 def test_with_the_pose_the_candidates_cover_back_lit_poles(tmp_path):

@@ -47,8 +47,13 @@ JOIN_KERNEL = np.ones((2, 5), np.uint8)
 MAX_WIDTH_RATIO = 3.0
 #: Windows overlapping more than this (IoU) frame the same pole; the later one is dropped.
 DUPLICATE_IOU = 0.5
-#: Most candidates kept per frame (the first in the finder's order): the crop network's batch.
-MAX_CANDIDATES = 24
+#: Most candidates kept per frame (the first in the finder's order), with the camera's pose and without it: the crop
+#: network's batch. With the pose the windows are ranked by their fit, so the cap reaches into a busy frame's poorer
+#: fits; without it the whole frame is seen and each window costs the same time.
+MAX_CANDIDATES, MAX_CANDIDATES_WITHOUT_POSE = 32, 24
+#: With the pose, how much an anchor narrower than the pole its place predicts counts against it, against one as
+#: much wider: a near pole's line between the bands, tilted or shaded, crosses a scanned row pair in pieces.
+NARROW_ANCHOR_WEIGHT = 0.25
 #: A band is about 1.17 times as tall as the pole is wide (10.5 cm over 9 cm).
 BAND_PER_WIDTH = 1.17
 #: The window, in band heights: its height, its width, and how far its top lies above the line between the bands.
@@ -145,8 +150,8 @@ class CandidateFinder:
     than ``DUPLICATE_IOU`` are one pole's, and only the first is kept.
     """
 
-    def __init__(self, max_candidates: int = MAX_CANDIDATES, pole: PoleGeometry = PoleGeometry()):
-        if max_candidates < 1:
+    def __init__(self, max_candidates: int | None = None, pole: PoleGeometry = PoleGeometry()):
+        if max_candidates is not None and max_candidates < 1:
             raise ValueError(f"max_candidates {max_candidates}: keep at least one candidate per frame")
         self.max_candidates = max_candidates
         self.pole = pole
@@ -175,8 +180,15 @@ class CandidateFinder:
         ranks = (len(windows) - np.arange(len(windows))).astype(float)  # earlier is better
         kept = cv2.dnn.NMSBoxes(np.concatenate([windows[:, :2], sizes], 1).tolist(), ranks.tolist(), 0.0,
                                 DUPLICATE_IOU)
-        kept = sorted(np.asarray(kept, int).reshape(-1))[: self.max_candidates]
+        kept = sorted(np.asarray(kept, int).reshape(-1))[: self.cap(view is not None)]
         return [Candidate(tuple(windows[i]), tuple(int(v) for v in anchors[i]), kinds[i]) for i in kept]
+
+    def cap(self, with_pose: bool) -> int:
+        """The most candidates a frame keeps: the one asked for, else ``MAX_CANDIDATES`` with the pose and
+        ``MAX_CANDIDATES_WITHOUT_POSE`` without it."""
+        if self.max_candidates is not None:
+            return self.max_candidates
+        return MAX_CANDIDATES if with_pose else MAX_CANDIDATES_WITHOUT_POSE
 
     @staticmethod
     def _anchors(kind: str, blobs: np.ndarray, top: int, step: int) -> np.ndarray:
@@ -202,7 +214,8 @@ class CandidateFinder:
         else:
             bands = self._pose_bands(kind, view, centre_x, centre_y)
             pole_widths = bands / BAND_PER_WIDTH
-            mismatch = np.abs(np.log(np.maximum(widths, COLUMN_STEP) / pole_widths))
+            excess = np.log(np.maximum(widths, COLUMN_STEP) / pole_widths)
+            mismatch = np.where(excess > 0, excess, -NARROW_ANCHOR_WEIGHT * excess)
             keep = np.isfinite(bands) & (widths <= MAX_WIDTH_RATIO * pole_widths + 2 * COLUMN_STEP)
             order = np.flatnonzero(keep)[np.argsort(mismatch[keep], kind="stable")]
         windows = np.stack(window_at_junction(centre_x[order], centre_y[order], bands[order]), axis=1)

@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from naoslam.camera import CameraPose
-from naoslam.perception.candidates import MAX_CANDIDATES, CandidateFinder, window_around_box
+from naoslam.perception.candidates import CandidateFinder, window_around_box
 from naoslam.perception.crops import crop_batch, to_frame
 from naoslam.perception.detections import Detection
 from naoslam.perception.engines import OpenVinoForward
@@ -41,8 +41,9 @@ class CropDetector(PoleModel):
 
     ``model``: a crop network's ONNX path (or shipped name); ``session``: its onnxruntime session, if already open.
     ``conf`` None uses the threshold stored in the model, else ``DEFAULT_CONF``. ``engine``: onnxruntime or
-    openvino. ``max_candidates``: the most windows one frame sends to the network. ``refine``: give every likely
-    pole a second look centred on its box (more exact boxes; a few more crops a frame).
+    openvino. ``max_candidates``: the most windows one frame sends to the network (None: the finder's own caps, with
+    the pose and without it). ``refine``: give every likely pole a second look centred on its box (more exact boxes;
+    a few more crops a frame).
     """
 
     #: Boxes are measured in the frame's own pixels, as labels are.
@@ -51,7 +52,7 @@ class CropDetector(PoleModel):
     matching = "box"
 
     def __init__(self, model: Path | str, conf: float | None = None, threads: int | None = None,
-                 engine: str = "onnxruntime", max_candidates: int = MAX_CANDIDATES, refine: bool = True,
+                 engine: str = "onnxruntime", max_candidates: int | None = None, refine: bool = True,
                  session=None):
         check_options(engine, threads)
         super().__init__(resolve_model(model), threads, session)
