@@ -35,7 +35,7 @@ from naoslam.perception.detections import Detection
 from naoslam.perception.yolo import LandmarkDetector
 from naoslam.perception.loading import load_detector
 from naoslam.ground import GroundView, PoleExtent
-from naoslam.landmarks import CLASSES
+from naoslam.landmarks import CLASSES, PoleGeometry
 from detector.model_files import ROBOT_WEIGHTS
 from tests.conftest import REPOSITORY, assert_runs_without_training_side
 
@@ -101,7 +101,8 @@ def test_without_the_pose_a_pole_read_by_its_pink_band_alone_is_not_crowded_out_
 
 def _pole_width_at(view: GroundView, u: float, v: float) -> float:
     """The width in pixels of a pole whose line between the bands shows at (u, v)."""
-    return CandidateFinder()._pose_bands("junction", view, np.array([u]), np.array([v]))[0] / BAND_PER_WIDTH
+    pole = PoleGeometry()
+    return pole.diameter * float(view.pixels_per_metre(np.array([u]), np.array([v]), pole.divide_height)[0])
 
 
 def test_with_the_pose_a_piece_of_a_near_pole_s_junction_outranks_clutter_too_wide_for_its_place():
