@@ -1,19 +1,21 @@
 """The robot front end's whole training recipe, from annotated frames to a verified ONNX file with its threshold:
-crops of every dataset's train and valid splits, the crop network trained (or trained on from a checkpoint), the
-export checked against PyTorch, and the operating threshold the best F1 on the valid frames (boxes matched by IoU).
-Everything lands in the run folder at once, or nothing does."""
+crops of every dataset's train and valid splits, the crop network trained (or trained on from a checkpoint), if asked
+a few epochs more with the second looks its own first look takes added, the export checked against PyTorch, and the
+operating threshold the best F1 on the valid frames (boxes matched by IoU). Everything lands in the run folder at
+once, or nothing does."""
 from __future__ import annotations
 
 import os
 import platform
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 from detector.crops.curves import plot_crop_history
 from detector.crops.export import export_crop_network
-from detector.crops.network import CROP_SIZE_WH
+from detector.crops.network import CROP_SIZE_WH, PoleCropNet
 from detector.crops.samples import NO_POLE, CropSet, crops_of_dataset
+from detector.crops.second_look import second_look_crops
 from detector.crops.settings import CropTrainSettings
 from detector.crops.train import EpochResult, load_checkpoint, save_checkpoint, train_crop_network
 from detector.datasets.intake import open_dataset
@@ -26,6 +28,7 @@ from detector.evaluation.run import evaluate_frames
 from detector.formats import write_record
 from detector.model_files import add_metadata
 from detector.records import JsonRecord
+from naoslam.perception.two_stage import CropDetector
 
 #: The files a run folder holds.
 CHECKPOINT, MODEL = "poles-robot.pt", "poles-robot.onnx"
@@ -33,6 +36,10 @@ CHECKPOINT, MODEL = "poles-robot.pt", "poles-robot.onnx"
 RUN_KIND = "robot front end run"
 #: The threshold a model is exported at before the valid frames choose its own.
 EXPORT_CONF = 0.5
+#: The second-look epochs learn at this share of the first epochs' rate, from the train crops and every
+#: second-look crop this many times over.
+SECOND_LOOK_LEARNING_RATE_SHARE = 1 / 3
+SECOND_LOOK_REPEAT = 2
 
 
 def machine() -> str:
@@ -80,6 +87,9 @@ class RobotTraining(JsonRecord):
     train_crops: int
     valid_crops: int
     pole_crops: int
+    #: Second-look crops added to the train crops (each ``SECOND_LOOK_REPEAT`` times); 0 where none were.
+    second_look_crops: int
+    #: The best epoch of the last stage (the second looks' where they ran), on that stage's valid crops.
     best_epoch: EpochResult
     epochs: int
     minutes: float
@@ -104,6 +114,9 @@ def train_robot_front_end(data: list[Path], out: Path, settings: CropTrainSettin
     inputs = (*protect, *(folder for dataset in datasets for folder in dataset.input_folders()))
     check_output_folder(out, force, inputs, RUN_KIND)
     start = load_checkpoint(weights) if weights is not None else None
+    if start is None and settings.epochs == 0:
+        raise ValueError("--epochs 0 trains a network on its second looks only: give the one to start from with "
+                         "--weights (a poles-robot.pt)")
     began = time.perf_counter()
     train, valid = (crop_sets(datasets, split, settings.seed + offset, progress)
                     for split, offset in (("train", 0), ("valid", 1000)))
@@ -112,23 +125,48 @@ def train_robot_front_end(data: list[Path], out: Path, settings: CropTrainSettin
             raise ValueError(f"{', '.join(map(str, data))}: no labelled pole in the {name} split - the crop network "
                              f"needs poles to learn from in train and valid (`poles split` makes both)")
     with output_folder(out, force, inputs, RUN_KIND) as folder:
-        network, history = train_crop_network(train, valid, settings, start)
-        if max(h.pole_recall for h in history) == 0:
+        network, history = train_crop_network(train, valid, settings, start) if settings.epochs else (start, [])
+        if history and max(h.pole_recall for h in history) == 0:
             raise ValueError(f"{', '.join(map(str, data))}: after {len(history)} epoch(s) the crop network finds none "
                              f"of the {int((valid.classes != NO_POLE).sum())} pole crops of the valid frames, so no "
                              f"model was written - train on more frames ({sum(len(d.split('train')) for d in datasets)}"
                              " train frames here; the shipped model learnt from 7,000) or for more --epochs")
-        save_checkpoint(network, folder / CHECKPOINT, history, settings)
         difference = export_crop_network(network, folder / MODEL, valid.crops[:256], EXPORT_CONF)
+        last_stage, mined = history, 0
+        left = None if settings.minutes is None else settings.minutes - sum(h.seconds for h in history) / 60
+        if settings.second_look_epochs and (left is None or left > 0):
+            network, looks, mined = train_on_second_looks(network, folder / MODEL, datasets, train, valid,
+                                                          replace(settings, minutes=left), progress)
+            last_stage = [replace(h, epoch=len(history) + h.epoch) for h in looks]
+            history = history + last_stage
+            difference = export_crop_network(network, folder / MODEL, valid.crops[:256], EXPORT_CONF)
+        save_checkpoint(network, folder / CHECKPOINT, history, settings)
         threshold, f1 = valid_threshold(folder / MODEL, opened, progress)
         training = {"minutes": round((time.perf_counter() - began) / 60, 1), "hardware": machine(),
                     "epochs": len(history), "frames": sum(len(dataset.split("train")) for dataset in datasets)}
         add_metadata(folder / MODEL, operating_conf=threshold, training=training)
         plot_crop_history(history, folder / "training_curves.png")
-        best = max(history, key=lambda h: h.score)
-        summary = RobotTraining(tuple(data), len(train), len(valid), int((train.classes != NO_POLE).sum()), best,
+        best = max(last_stage, key=lambda h: h.score)
+        summary = RobotTraining(tuple(data), len(train), len(valid), int((train.classes != NO_POLE).sum()), mined, best,
                                 len(history), round(sum(h.seconds for h in history) / 60, 2), float(difference),
                                 float(threshold), float(f1), settings, weights, Path(out) / MODEL)
         epochs = [asdict(h) for h in history]
         write_record(folder / "history.json", "robot training", {**summary.to_json(), "history": epochs})
     return summary
+
+
+def train_on_second_looks(network: PoleCropNet, model: Path, datasets: list[Dataset], train: CropSet, valid: CropSet,
+                          settings: CropTrainSettings,
+                          progress: bool = True) -> tuple[PoleCropNet, list[EpochResult], int]:
+    """The network (exported at ``model``) trained on for ``settings.second_look_epochs`` with the second-look crops
+    its first look finds in the train and valid frames added; returns the network, those epochs' figures and the
+    number of second-look train crops."""
+    detector = CropDetector(model, threads=settings.threads)
+    train_looks, valid_looks = (second_look_crops(detector, datasets, split, progress) for split in ("train", "valid"))
+    print(f"second looks: {len(train_looks)} train crops ({int((train_looks.classes != NO_POLE).sum())} poles), "
+          f"{len(valid_looks)} valid; {settings.second_look_epochs} epochs more", flush=True)
+    more = replace(settings, epochs=settings.second_look_epochs,
+                   learning_rate=settings.learning_rate * SECOND_LOOK_LEARNING_RATE_SHARE)
+    network, history = train_crop_network(CropSet.concatenate([train] + [train_looks] * SECOND_LOOK_REPEAT),
+                                          CropSet.concatenate([valid, valid_looks]), more, network.train())
+    return network, history, len(train_looks)

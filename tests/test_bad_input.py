@@ -23,6 +23,7 @@ import yaml
 from detector.cli import main
 from detector.datasets import load_dataset
 from detector.outputs import OUTPUT_MARKER
+from detector.model_files import ROBOT_WEIGHTS
 
 
 def tree_hash(root: Path) -> str:
@@ -830,6 +831,19 @@ def test_a_missing_robot_checkpoint_is_called_missing(synth_dataset, tmp_path, c
     lines = _refusal_lines(["train-robot", str(synth_dataset), "--out", str(tmp_path / "robot"), "--weights",
                             str(tmp_path / "none.pt")], capsys)
     assert "none.pt: no such checkpoint" in lines[0] and "FileNotFoundError" not in lines[0], lines
+
+
+def test_train_robot_with_no_epochs_asks_for_the_network_to_start_from(synth_dataset, tmp_path, capsys):
+    """`--epochs 0` trains only on the second looks of a network: without --weights there is none, and with no
+    second-look epochs either there is nothing to train."""
+    out = tmp_path / "robot"
+    lines = _refusal_lines(["train-robot", str(synth_dataset), "--out", str(out), "--epochs", "0",
+                            "--second-look-epochs", "6"], capsys)
+    assert "--epochs 0 trains a network on its second looks only" in lines[0] and "--weights" in lines[0], lines
+    lines = _refusal_lines(["train-robot", str(synth_dataset), "--out", str(out), "--epochs", "0", "--weights",
+                            str(ROBOT_WEIGHTS)], capsys)
+    assert "0 epochs and 0 second-look epochs train nothing: give epochs (--epochs)" in lines[0], lines
+    assert not out.exists()
 
 
 def test_evaluate_says_when_pose_finds_no_recorded_pose(dataset_copy, tmp_path, capsys):

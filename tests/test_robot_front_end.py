@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 from detector.formats import read_record
 from detector.crops.network import CropArchitecture
 from detector.crops.samples import NO_POLE, coverage, crops_of_dataset, ground_view, label_boxes, pole_for
+from detector.crops.second_look import second_look_crops
 from detector.datasets.io import load_dataset
 from detector.datasets.truth import load_camera_poses
 from detector.evaluation.counting import evaluate_image
@@ -29,7 +30,7 @@ from detector.synth.scene import SceneConfig, calibration_scene
 from naoslam.camera import PinholeCamera
 from naoslam.perception.candidates import (BAND_PER_WIDTH, MAX_CANDIDATES, MAX_CANDIDATES_WITHOUT_POSE,
                                            CandidateFinder, window_around_box)
-from naoslam.perception.two_stage import CropDetector
+from naoslam.perception.two_stage import REFINE_CONF, CropDetector
 from naoslam.perception.crops import crop_window, to_crop, to_frame
 from naoslam.perception.detections import Detection
 from naoslam.perception.yolo import LandmarkDetector
@@ -258,6 +259,8 @@ def test_the_crop_network_keeps_the_best_epoch_or_the_last_as_asked(tiny_crop_mo
     assert validate(network, crops) == pytest.approx((kept.pole_recall, kept.false_pole_rate, kept.box_iou))
     with pytest.raises(ValueError, match="give best or last"):
         CropTrainSettings(keep="first")
+    with pytest.raises(ValueError, match="second-look epochs -1: give 0"):
+        CropTrainSettings(second_look_epochs=-1)
 
 
 def test_train_robot_prints_and_keeps_what_it_made(synth_dataset, tmp_path, capsys):
@@ -267,13 +270,37 @@ def test_train_robot_prints_and_keeps_what_it_made(synth_dataset, tmp_path, caps
 
     out = tmp_path / "robot"
     assert main(["train-robot", str(synth_dataset), "--out", str(out), "--epochs", "1", "--threads", "1",
-                 "--weights", str(ROBOT_WEIGHTS)]) == 0
+                 "--weights", str(ROBOT_WEIGHTS), "--second-look-epochs", "1"]) == 0
     lines = capsys.readouterr().out.splitlines()
     printed = RobotTraining.from_json(json.loads("\n".join(lines[lines.index("{"):])))
     kept = read_record(out / "history.json", "robot training")
     assert RobotTraining.from_json({k: v for k, v in kept.items() if k != "history"}) == printed
-    assert printed.epochs == len(kept["history"]) == 1 and printed.model == out / "poles-robot.onnx"
+    assert printed.epochs == len(kept["history"]) == 2 and printed.model == out / "poles-robot.onnx"
+    assert [row["epoch"] for row in kept["history"]] == [1, 2] and printed.best_epoch.epoch == 2
+    assert printed.second_look_crops > 0 and any(line.startswith("second looks: ") for line in lines)
     assert isinstance(load_detector(printed.model), CropDetector) and 0 < printed.operating_conf < 1
+
+
+def test_a_second_look_goes_to_each_likely_pole_s_box_at_its_own_scale():
+    detector = CropDetector("shipped-robot")
+    out = np.zeros((3, len(CLASSES) + 1 + 4), np.float32)
+    out[0, 2], out[1, 0], out[2, 4] = 0.5, REFINE_CONF / 2, 0.9
+    boxes = np.array([[100, 50, 120, 130], [200, 60, 220, 140], [300, 70, 300, 150]], float)  # the last no wider than 0
+    again, windows = detector.second_look_windows(out, boxes, (240, 320))
+    assert again.tolist() == [0]
+    assert windows.tolist() == [list(window_around_box(tuple(boxes[0]), (240, 320)))]
+
+
+def test_second_look_crops_hold_the_poles_the_first_look_finds_centred(synth_dataset):
+    """Each second look the shipped network takes at a rendered pole becomes a crop of that pole, the pole standing
+    in the middle of it at its own scale, as the robot sees it the second time; some look at clutter."""
+    crops = second_look_crops(CropDetector("shipped-robot", threads=1), [load_dataset(synth_dataset)], "train",
+                              progress=False)
+    poles = crops.classes != NO_POLE
+    assert poles.sum() >= 10 and len(crops.crops) == len(crops.classes) == len(crops.boxes)
+    centres, heights = (crops.boxes[poles, 0] + crops.boxes[poles, 2]) / 2, crops.boxes[poles, 3] - crops.boxes[poles, 1]
+    assert np.median(np.abs(centres - 0.5)) < 0.03 and 0.58 < np.median(heights) < 0.72  # 4 bands of 6
+    assert np.isnan(crops.boxes[~poles]).all()
 
 
 def test_the_two_stage_front_end_runs_without_the_training_side(tiny_crop_model):

@@ -1,5 +1,5 @@
 """``poles train-robot``: the robot's two-stage front end trained from annotated frames on the CPU - crops of the
-finder's candidates, the crop network trained on them, exported to ONNX and checked against PyTorch, its operating
+finder's candidates, the crop network trained on them (then on its own second looks too), exported to ONNX and checked against PyTorch, its operating
 threshold chosen on the valid frames."""
 from __future__ import annotations
 
@@ -24,8 +24,12 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     robot.add_argument("--out", type=Path, required=True,
                        help="run folder: poles-robot.pt, poles-robot.onnx, history.json, training_curves.png")
     robot.add_argument("--weights", type=Path, help="a poles-robot.pt to go on training from (default: from scratch)")
-    robot.add_argument("--epochs", type=whole_number(1), default=DEFAULTS.epochs,
-                       help=f"epochs over the crops (default {DEFAULTS.epochs})")
+    robot.add_argument("--epochs", type=whole_number(0), default=DEFAULTS.epochs,
+                       help=f"epochs over the crops (default {DEFAULTS.epochs}; 0 with --weights and "
+                            "--second-look-epochs: only the second looks)")
+    robot.add_argument("--second-look-epochs", type=whole_number(0), default=DEFAULTS.second_look_epochs,
+                       help="epochs more with the crops of the second looks the trained network takes added "
+                            f"(default {DEFAULTS.second_look_epochs}: none; 6 to use them)")
     robot.add_argument("--minutes", type=positive_number,
                        help="stop training after this many minutes even if epochs are left")
     robot.add_argument("--seed", type=whole_number(0), default=DEFAULTS.seed,
@@ -39,7 +43,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
 def _train_robot(args: argparse.Namespace) -> int:
     from detector.robot_training import train_robot_front_end
 
-    settings = CropTrainSettings(epochs=args.epochs, seed=args.seed, threads=args.threads, minutes=args.minutes)
+    settings = CropTrainSettings(epochs=args.epochs, seed=args.seed, threads=args.threads, minutes=args.minutes,
+                                 second_look_epochs=args.second_look_epochs)
     result = train_robot_front_end(args.data, args.out, settings, args.weights, args.force,
                                    protect=existing(*args.data, args.weights))
     print(json.dumps(result.to_json(), indent=1))

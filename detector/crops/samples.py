@@ -7,6 +7,7 @@ every pole; anything between is left out, so the network is never taught two ans
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -43,6 +44,12 @@ class CropSet:
 
     def __len__(self) -> int:
         return len(self.classes)
+
+    @classmethod
+    def empty(cls, size_wh: tuple[int, int]) -> "CropSet":
+        """A set of no crops of this size (width, height)."""
+        return cls(np.zeros((0, size_wh[1], size_wh[0], 3), np.uint8), np.zeros(0, np.int64),
+                   np.zeros((0, 4), np.float32))
 
     @classmethod
     def concatenate(cls, sets: list["CropSet"]) -> "CropSet":
@@ -115,20 +122,38 @@ def crops_of_frame(frame: np.ndarray, sample: Sample, view: GroundView | None, f
     around each labelled pole."""
     height, width = frame.shape[:2]
     boxes = label_boxes(sample, width, height)
-    classes = [instance.cls for instance in sample.instances]
-    windows, targets = [], []
-    candidates = finder(frame, view) + (finder(frame) if view is not None else [])
-    for candidate in _distinct(candidates):
-        pole = pole_for(candidate.window, boxes, (height, width))
-        if pole is not None:
-            windows.append(candidate.window)
-            targets.append(pole)
-    for pole, (box, cls) in enumerate(zip(boxes, classes)):
+    windows, targets = labelled_windows([c.window for c in frame_candidates(frame, view, finder)], boxes,
+                                        (height, width))
+    for pole, box in enumerate(boxes):
         for _ in range(jitter):
             windows.append(jittered(window_around_box(box, (height, width)), rng))
             targets.append(pole)
-    crops = np.stack([crop_window(frame, w, size_wh) for w in windows]) if windows else \
-        np.zeros((0, size_wh[1], size_wh[0], 3), np.uint8)
+    return crops_at(frame, windows, targets, boxes, [instance.cls for instance in sample.instances], size_wh)
+
+
+def frame_candidates(frame: np.ndarray, view: GroundView | None, finder: CandidateFinder) -> list:
+    """The finder's candidates in a frame with the camera's pose where there is one and without it, each window once."""
+    return _distinct(finder(frame, view) + (finder(frame) if view is not None else []))
+
+
+def labelled_windows(windows: list[Window], boxes: list[Window],
+                     frame_hw: tuple[int, int]) -> tuple[list[Window], list[int]]:
+    """The windows that clearly frame a pole or show none (:func:`pole_for`), with the pole each frames (-1: none)."""
+    kept, targets = [], []
+    for window in windows:
+        pole = pole_for(window, boxes, frame_hw)
+        if pole is not None:
+            kept.append(window)
+            targets.append(pole)
+    return kept, targets
+
+
+def crops_at(frame: np.ndarray, windows: list[Window], targets: list[int], boxes: list[Window], classes: list[str],
+             size_wh: tuple[int, int]) -> CropSet:
+    """The windows cut from the frame, each named by its target pole (``classes``, ``boxes``) or as no pole (-1)."""
+    if not windows:
+        return CropSet.empty(size_wh)
+    crops = np.stack([crop_window(frame, w, size_wh) for w in windows])
     class_ids = np.array([NO_POLE if t < 0 else CLASSES.index(classes[t]) for t in targets], np.int64)
     crop_boxes = np.array([np.full(4, np.nan) if t < 0 else to_crop(boxes[t], w) for w, t in zip(windows, targets)],
                           np.float32).reshape(-1, 4)
@@ -146,19 +171,21 @@ def _distinct(candidates: list) -> list:
     return out
 
 
+def annotated_frames(dataset: Dataset, splits: tuple[str, ...], label: str,
+                     progress: bool = True) -> Iterator[tuple[Sample, np.ndarray, GroundView | None]]:
+    """Every frame of ``splits`` of a dataset read through the intake, with its ground view where
+    ``annotations.json`` records the camera's pose (the finder then searches the ground band, as on the robot)."""
+    poses = load_camera_poses(dataset)
+    samples = [s for split in splits for s in dataset.split(split)]
+    for sample in show_progress(samples, f"{label} {Path(dataset.root).name}", "img", enabled=progress):
+        frame = cv2.imread(str(sample.image))  # the intake decoded each one; a truncated JPEG reads grey below
+        yield sample, frame, ground_view(poses.get(sample.image.name), frame.shape[:2])
+
+
 def crops_of_dataset(dataset: Dataset, splits: tuple[str, ...], size_wh: tuple[int, int], seed: int = 0,
                      jitter: int = JITTERED_WINDOWS, progress: bool = True) -> CropSet:
-    """The training crops of every frame of ``splits`` of a dataset read through the intake; a frame's camera
-    pose, where ``annotations.json`` records it, limits the finder to the ground band as on the robot."""
-    poses = load_camera_poses(dataset)
+    """The training crops (:func:`crops_of_frame`) of every frame of ``splits`` of a dataset."""
     finder = CandidateFinder()
-    samples = [s for split in splits for s in dataset.split(split)]
-    sets = []
-    for index, sample in enumerate(show_progress(samples, f"cropping {Path(dataset.root).name}", "img",
-                                                 enabled=progress)):
-        frame = cv2.imread(str(sample.image))  # the intake decoded each one; a truncated JPEG reads grey below
-        view = ground_view(poses.get(sample.image.name), frame.shape[:2])
-        rng = np.random.default_rng([seed, index])
-        sets.append(crops_of_frame(frame, sample, view, finder, size_wh, rng, jitter))
-    return CropSet.concatenate(sets) if sets else \
-        CropSet(np.zeros((0, size_wh[1], size_wh[0], 3), np.uint8), np.zeros(0, np.int64), np.zeros((0, 4), np.float32))
+    sets = [crops_of_frame(frame, sample, view, finder, size_wh, np.random.default_rng([seed, index]), jitter)
+            for index, (sample, frame, view) in enumerate(annotated_frames(dataset, splits, "cropping", progress))]
+    return CropSet.concatenate(sets) if sets else CropSet.empty(size_wh)

@@ -22,10 +22,19 @@ class CropTrainSettings:
     #: Which epoch's weights are kept: ``best`` on the valid crops, or ``last`` (a valid split of a frame or two
     #: scores every epoch alike, and ``best`` would then keep the first).
     keep: str = "best"
+    #: Epochs trained on after the first ``epochs``, with the second-look crops the network's own first look finds
+    #: added (``detector.crops.second_look``); 0: none.
+    second_look_epochs: int = 0
 
     def __post_init__(self) -> None:
-        if self.epochs < 1 or self.batch < 1 or self.threads < 1:
-            raise ValueError(f"epochs {self.epochs}, batch {self.batch}, threads {self.threads}: each must be 1 or more")
+        if self.epochs < 0 or self.batch < 1 or self.threads < 1:
+            raise ValueError(f"epochs {self.epochs}, batch {self.batch}, threads {self.threads}: give 0 or more epochs, "
+                             "1 or more of the rest")
+        if self.epochs == 0 and self.second_look_epochs == 0:
+            raise ValueError("0 epochs and 0 second-look epochs train nothing: give epochs (--epochs) or second-look "
+                             "epochs (--second-look-epochs)")
+        if self.second_look_epochs < 0:
+            raise ValueError(f"second-look epochs {self.second_look_epochs}: give 0 (none) or more")
         if not (self.learning_rate > 0 and self.weight_decay >= 0):
             raise ValueError(f"learning rate {self.learning_rate} must be above 0, weight decay {self.weight_decay} "
                              "not below")

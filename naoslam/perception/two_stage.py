@@ -107,16 +107,24 @@ class CropDetector(PoleModel):
         boxes[:, [1, 3]] = boxes[:, [1, 3]].clip(0, frame_hw[0])
         return boxes
 
+    def second_look_windows(self, out: np.ndarray, boxes: np.ndarray,
+                            frame_hw: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+        """Which first answers get a second look (indices: named a pole with at least ``REFINE_CONF``, a box of some
+        size) and the window (N, 4) the finder would draw around each one's box."""
+        likely = out[:, :len(self.classes)].max(axis=1) >= REFINE_CONF
+        again = np.flatnonzero(likely & (boxes[:, 2:] > boxes[:, :2]).all(axis=1))
+        windows = np.array([window_around_box(tuple(boxes[i]), frame_hw) for i in again]).reshape(-1, 4)
+        return again, windows
+
     def _refined(self, frame: np.ndarray, out: np.ndarray, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """A second look at every candidate the first named a pole with at least ``REFINE_CONF``: the window the
         finder would draw around its box, so the pole stands centred at its own scale. The box is the second look's,
         the class probabilities the mean of both."""
         frame_hw = frame.shape[:2]
         count = len(self.classes)
-        again = np.flatnonzero((out[:, :count].max(axis=1) >= REFINE_CONF) & (boxes[:, 2:] > boxes[:, :2]).all(axis=1))
+        again, windows = self.second_look_windows(out, boxes, frame_hw)
         if not again.size:
             return out, boxes
-        windows = np.array([window_around_box(tuple(boxes[i]), frame_hw) for i in again])
         second = self.run(frame, windows)
         out, boxes = out.copy(), boxes.copy()
         out[again, :count + 1] = (out[again, :count + 1] + second[:, :count + 1]) / 2
