@@ -1,6 +1,6 @@
 """``poles train-robot``: the robot's two-stage front end trained from annotated frames on the CPU - crops of the
-finder's candidates, the crop network trained on them (then on its own second looks too), exported to ONNX and checked against PyTorch, its operating
-threshold chosen on the valid frames."""
+finder's candidates, the crop network trained on them (and, if asked, on its own second looks), exported to ONNX and
+checked against PyTorch, its operating threshold chosen on the valid frames."""
 from __future__ import annotations
 
 import argparse

@@ -87,13 +87,15 @@ class CropDetector(PoleModel):
         self.candidates = self.finder(frame, view)
         if not self.candidates:
             return self.gated([], view)
-        frame_hw = frame.shape[:2]
-        windows = np.array([c.window for c in self.candidates])
-        out = self.run(frame, windows)
-        boxes = self.frame_boxes(out, windows, frame_hw)
+        out, boxes = self.first_look(frame, np.array([c.window for c in self.candidates]))
         if self.refine:
             out, boxes = self._refined(frame, out, boxes)
         return self.gated(self.decode(out, boxes), view)
+
+    def first_look(self, frame: np.ndarray, windows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The network's answers for the candidates' windows and their boxes in frame pixels."""
+        out = self.run(frame, windows)
+        return out, self.frame_boxes(out, windows, frame.shape[:2])
 
     def run(self, frame: np.ndarray, windows: np.ndarray) -> np.ndarray:
         """The network's answers for these windows of the frame."""
