@@ -117,15 +117,22 @@ pole-model: $(STAMP)
 		--calibration $(FINAL)/calibration.json \
 		--conf $$($(BIN)/python -c "import json; print(json.load(open('$(FINAL)/tune/metrics.json'))['best_f1_conf'])")
 
-# The robot front end's recipe (docs/robot-model.md): pink candidates at full resolution and a crop network per
-# candidate (`poles train-robot`), trained on this two-core CPU from rendered frames over real backdrops; its threshold
-# the best F1 on a tuning set with each frame's camera pose, its range laws fitted on its own boxes.
+# The robot front end's recipe (docs/robot-model.md): pink candidates at full resolution, a preclassifier and a crop
+# network per candidate (`poles train-robot`), trained on this two-core CPU from rendered frames over real backdrops;
+# its threshold the best F1 on a tuning set with each frame's camera pose, its range laws fitted on its own boxes.
+# The shipped crop network is the 40-epoch run of the release before (its crops were area-averaged, this release's
+# are sampled); its preclassifier is the second train-robot run below, on the frames of seeds 2070 and 2071.
 ROBOT = runs/robot-front-end
 ROBOT_SYNTH = $(POLE_SYNTH) --far-share 0.3
 robot-model: $(STAMP)
 	$(BIN)/poles synth --out runs/crops-data-1 --images 4000 --seed 2060 $(ROBOT_SYNTH)
 	$(BIN)/poles synth --out runs/crops-data-2 --images 6000 --seed 2061 $(ROBOT_SYNTH)
-	$(BIN)/poles train-robot runs/crops-data-1 runs/crops-data-2 --out $(ROBOT) --epochs 40 --force
+	$(BIN)/poles train-robot runs/crops-data-1 runs/crops-data-2 --out $(ROBOT)-network --epochs 40 \
+		--preclassifier-epochs 0 --force
+	$(BIN)/poles synth --out runs/crops-data-p --images 2000 --seed 2070 $(ROBOT_SYNTH)
+	$(BIN)/poles synth --out runs/crops-data-q --images 4000 --seed 2071 $(ROBOT_SYNTH)
+	$(BIN)/poles train-robot runs/crops-data-p runs/crops-data-q --out $(ROBOT) --weights $(ROBOT)-network/poles-robot.pt \
+		--epochs 0 --preclassifier-epochs 20 --force
 	$(BIN)/poles synth --out runs/pole-tune-300 --images 300 --seed 139 $(POLE_SYNTH) --force
 	$(BIN)/poles split --data runs/pole-tune-300 --out runs/pole-tune-300-all --ratios 0 0 1 --force
 	$(BIN)/poles evaluate --model $(ROBOT)/poles-robot.onnx --data runs/pole-tune-300-all --split valid --pose \

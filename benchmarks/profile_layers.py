@@ -18,6 +18,7 @@ from collections import defaultdict
 import numpy as np
 
 from detector.speed import CAPS
+from naoslam.perception.engines import openvino_config
 
 
 def profile(model: str, input_hw: tuple[int, int], top: int, repeats: int = 30) -> None:
@@ -27,8 +28,7 @@ def profile(model: str, input_hw: tuple[int, int], top: int, repeats: int = 30) 
     core = ov.Core()
     network = core.read_model(model)
     network.reshape({network.inputs[0]: [1, 3, *input_hw]})
-    compiled = core.compile_model(network, "CPU", {"INFERENCE_NUM_THREADS": 1, "PERF_COUNT": True,
-                                                   "INFERENCE_PRECISION_HINT": "f32"})
+    compiled = core.compile_model(network, "CPU", openvino_config(1, PERF_COUNT=True))
     request = compiled.create_infer_request()
     blob = np.random.default_rng(0).random((1, 3, *input_hw), dtype=np.float32)
     for _ in range(5):

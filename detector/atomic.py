@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import shutil
 import tempfile
@@ -57,5 +58,17 @@ def write_text(path: Path | str, text: str) -> Path:
 
 
 def write_json(path: Path | str, data: Any) -> Path:
-    """Write ``data`` as indented JSON to ``path`` atomically."""
-    return write_text(path, json.dumps(data, indent=2, sort_keys=False) + "\n")
+    """Write ``data`` as indented, strict JSON to ``path`` atomically: a figure that is not finite (NaN, infinity)
+    is written as null, which every JSON reader takes, not as ``NaN`` or ``Infinity``, which strict ones refuse."""
+    return write_text(path, json.dumps(finite_or_null(data), indent=2, sort_keys=False, allow_nan=False) + "\n")
+
+
+def finite_or_null(data: Any) -> Any:
+    """``data`` with every float that is not finite replaced by None, through dicts, lists and tuples."""
+    if isinstance(data, float):
+        return data if math.isfinite(data) else None
+    if isinstance(data, dict):
+        return {key: finite_or_null(value) for key, value in data.items()}
+    if isinstance(data, (list, tuple)):
+        return [finite_or_null(value) for value in data]
+    return data

@@ -28,7 +28,7 @@ FORMATS: dict[str, int] = {
     "calibration": 1,  # poles calibrate's calibration.json
     "export report": 1,  # poles export's MODEL.export.json
     "stages": 1,  # the stages.json of poles demo and poles finetune
-    "robot training": 2,  # poles train-robot's history.json (2: second_look_crops added)
+    "robot training": 3,  # poles train-robot's history.json (2: second_look_crops added; 3: preclassifier added)
     "augment": 1,  # poles augment's augment.json
     "paint": 1,  # paint.json of poles synth --paint-from and poles finetune
     "demo evaluation": 1,  # poles demo's evaluation/summary.json
@@ -87,6 +87,10 @@ def read_record(path: Path | str, kind: str) -> dict[str, Any]:
     if found_kind != kind:
         raise FormatMismatch(f"{path}: a {found_kind} file, not a {kind} file - give the {kind} file")
     number = data.get("format", 1)
+    if not isinstance(number, int) or isinstance(number, bool):
+        raise FormatMismatch(f"{path}: its \"format\" is {json.dumps(number)}, not a whole number - the file was "
+                             f"edited or damaged; give the {kind} file poles wrote (run the command that wrote it "
+                             "again)")
     if number != FORMATS[kind]:
         writer = data.get("written_by", "a poles release from before format numbers")
         newer = isinstance(number, int) and number > FORMATS[kind]

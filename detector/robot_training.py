@@ -1,8 +1,9 @@
 """The robot front end's whole training recipe, from annotated frames to a verified ONNX file with its threshold:
 crops of every dataset's train and valid splits, the crop network trained (or trained on from a checkpoint), if asked
-a few epochs more with the second looks its own first look takes added, the export checked against PyTorch, and the
-operating threshold the best F1 on the valid frames (boxes matched by IoU). Everything lands in the run folder at
-once, or nothing does."""
+a few epochs more with the second looks its own first look takes added, the export checked against PyTorch, the
+preclassifier trained on the same crops and stored in the file, and the operating threshold the best F1 on the valid
+frames (boxes matched by IoU) with the preclassifier in place, as the robot runs it. Everything lands in the run
+folder at once, or nothing does."""
 from __future__ import annotations
 
 import os
@@ -14,6 +15,8 @@ from pathlib import Path
 from detector.crops.curves import plot_crop_history
 from detector.crops.export import export_crop_network
 from detector.crops.network import CROP_SIZE_WH, PoleCropNet
+from detector.crops.preclassifier import (PRECLASSIFIER_SIZE_WH, PreclassifierResult, preclassifier_onnx,
+                                          train_preclassifier)
 from detector.crops.samples import NO_POLE, CropSet, crops_of_dataset
 from detector.crops.second_look import second_look_crops
 from detector.crops.settings import CropTrainSettings
@@ -28,6 +31,7 @@ from detector.evaluation.run import evaluate_frames
 from detector.formats import write_record
 from detector.model_files import add_metadata
 from detector.records import JsonRecord
+from naoslam.perception.preclassifier import PRECLASSIFIER_KEY, preclassifier_entry
 from naoslam.perception.two_stage import CropDetector
 
 #: The files a run folder holds.
@@ -52,9 +56,10 @@ def machine() -> str:
     return f"{os.cpu_count()} cores, {name}"
 
 
-def crop_sets(datasets: list[Dataset], split: str, seed: int, progress: bool = True) -> CropSet:
-    """The crops of one split of every dataset."""
-    return CropSet.concatenate([crops_of_dataset(dataset, (split,), CROP_SIZE_WH, seed=seed + i, progress=progress)
+def crop_sets(datasets: list[Dataset], split: str, seed: int, progress: bool = True,
+              size_wh: tuple[int, int] = CROP_SIZE_WH) -> CropSet:
+    """The crops of one split of every dataset, cut at ``size_wh`` (the same windows at any size, for one seed)."""
+    return CropSet.concatenate([crops_of_dataset(dataset, (split,), size_wh, seed=seed + i, progress=progress)
                                 for i, dataset in enumerate(datasets)])
 
 
@@ -89,8 +94,9 @@ class RobotTraining(JsonRecord):
     pole_crops: int
     #: Second-look crops added to the train crops (each ``SECOND_LOOK_REPEAT`` times); 0 where none were.
     second_look_crops: int
-    #: The best epoch of the last stage (the second looks' where they ran), on that stage's valid crops.
-    best_epoch: EpochResult
+    #: The best epoch of the last stage (the second looks' where they ran), on that stage's valid crops; None where
+    #: only a preclassifier was trained.
+    best_epoch: EpochResult | None
     epochs: int
     minutes: float
     #: Largest output difference between the ONNX model and PyTorch on valid crops.
@@ -99,6 +105,8 @@ class RobotTraining(JsonRecord):
     operating_conf: float
     valid_f1: float
     settings: CropTrainSettings
+    #: The preclassifier stored in the model (None: none was trained).
+    preclassifier: PreclassifierResult | None
     #: The checkpoint it started from (None: from scratch).
     weights: Path | None
     model: Path
@@ -115,8 +123,8 @@ def train_robot_front_end(data: list[Path], out: Path, settings: CropTrainSettin
     check_output_folder(out, force, inputs, RUN_KIND)
     start = load_checkpoint(weights) if weights is not None else None
     if start is None and settings.epochs == 0:
-        raise ValueError("--epochs 0 trains a network on its second looks only: give the one to start from with "
-                         "--weights (a poles-robot.pt)")
+        raise ValueError("--epochs 0 trains no new crop network, only on a trained one's second looks or its "
+                         "preclassifier: give the one to start from with --weights (a poles-robot.pt)")
     began = time.perf_counter()
     train, valid = (crop_sets(datasets, split, settings.seed + offset, progress)
                     for split, offset in (("train", 0), ("valid", 1000)))
@@ -141,18 +149,36 @@ def train_robot_front_end(data: list[Path], out: Path, settings: CropTrainSettin
             history = history + last_stage
             difference = export_crop_network(network, folder / MODEL, valid.crops[:256], EXPORT_CONF)
         save_checkpoint(network, folder / CHECKPOINT, history, settings)
+        preclassifier = add_preclassifier(folder / MODEL, network, datasets, valid, settings, progress) \
+            if settings.preclassifier_epochs else None
         threshold, f1 = valid_threshold(folder / MODEL, opened, progress)
         training = {"minutes": round((time.perf_counter() - began) / 60, 1), "hardware": machine(),
                     "epochs": len(history), "frames": sum(len(dataset.split("train")) for dataset in datasets)}
         add_metadata(folder / MODEL, operating_conf=threshold, training=training)
-        plot_crop_history(history, folder / "training_curves.png")
-        best = max(last_stage, key=lambda h: h.score)
+        if history:  # a run that trained only a preclassifier has no epochs of the crop network to draw
+            plot_crop_history(history, folder / "training_curves.png")
+        best = max(last_stage, key=lambda h: h.score) if last_stage else None
         summary = RobotTraining(tuple(data), len(train), len(valid), int((train.classes != NO_POLE).sum()), mined, best,
                                 len(history), round(sum(h.seconds for h in history) / 60, 2), float(difference),
-                                float(threshold), float(f1), settings, weights, Path(out) / MODEL)
+                                float(threshold), float(f1), settings, preclassifier, weights, Path(out) / MODEL)
         epochs = [asdict(h) for h in history]
         write_record(folder / "history.json", "robot training", {**summary.to_json(), "history": epochs})
     return summary
+
+
+def add_preclassifier(model: Path, network: PoleCropNet, datasets: list[Dataset], valid: CropSet,
+                      settings: CropTrainSettings, progress: bool = True) -> PreclassifierResult:
+    """Train the preclassifier on the crop network's training windows, cut at its own size, choose its threshold on
+    the valid windows against the crop network's answers there (``valid``: the same windows at the network's size),
+    and store it in the network's model file."""
+    small_train, small_valid = (crop_sets(datasets, split, settings.seed + offset, progress, PRECLASSIFIER_SIZE_WH)
+                                for split, offset in (("train", 0), ("valid", 1000)))
+    preclassifier, result = train_preclassifier(
+        small_train, small_valid, valid, network, replace(settings, epochs=settings.preclassifier_epochs, minutes=None))
+    add_metadata(model, **{PRECLASSIFIER_KEY: preclassifier_entry(
+        preclassifier_onnx(preclassifier, small_valid.crops[:256]), result.threshold, result.kept_poles,
+        result.rejected_clutter)})
+    return result
 
 
 def train_on_second_looks(network: PoleCropNet, model: Path, datasets: list[Dataset], train: CropSet, valid: CropSet,

@@ -61,9 +61,24 @@ class StageLedger:
         self.announce = announce
         self.records: dict[str, StageRecord] = {}
         if self.path.is_file():
-            for name, data in read_record(self.path, "stages").items():
-                self.records[name] = StageRecord(**{**data, "ran": False})
+            self.records = self._read()
         self.order: list[str] = []
+
+    def _read(self) -> dict[str, StageRecord]:
+        """The ledger's records; one ValueError for any damage, saying what to do with the run folder."""
+        fix = (f"the run folder {self.folder} cannot be resumed - remove it to start the run again, or give --out a "
+               "new folder")
+        try:
+            entries = read_record(self.path, "stages")
+        except ValueError as error:
+            raise ValueError(f"{str(error).split(' - ')[0]}; {fix}") from None
+        records = {}
+        for name, data in entries.items():
+            try:
+                records[name] = StageRecord(**{**data, "ran": False})
+            except TypeError:  # not a mapping, a field missing or one too many
+                raise ValueError(f"{self.path}: the stage {name!r} is not a record this release wrote; {fix}") from None
+        return records
 
     @classmethod
     def check_folder(cls, out: Path, command: str) -> None:

@@ -616,6 +616,18 @@ def test_a_number_that_is_not_finite_is_refused_before_anything_runs(argv, tmp_p
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("argv", [["finetune", "{tmp}", "--out", "{tmp}/out", "--minutes", "1e308"],
+                                  ["demo", "--out", "{tmp}/out", "--minutes", "20000"],
+                                  ["train-robot", "{tmp}", "--out", "{tmp}/out", "--minutes", "1e308"]])
+def test_a_time_budget_beyond_a_week_is_refused_before_anything_runs(argv, tmp_path, capsys):
+    """``--minutes 1e308`` once ran, and its plan's arithmetic wrote ``Infinity`` into stages.json and metrics.json."""
+    with pytest.raises(SystemExit) as exited:
+        main([a.format(tmp=tmp_path) for a in argv])
+    assert exited.value.code == 2
+    assert "give at most 10080 minutes (a week)" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize("argv", [["predict", "--images", "{tmp}", "--out", "{tmp}/out", "--conf", "-1"],
                                   ["evaluate", "{tmp}", "--out", "{tmp}/out", "--conf", "2"],
                                   ["slam", "--sim", "square", "--out", "{tmp}/out", "--conf", "1.5"],
@@ -834,15 +846,15 @@ def test_a_missing_robot_checkpoint_is_called_missing(synth_dataset, tmp_path, c
 
 
 def test_train_robot_with_no_epochs_asks_for_the_network_to_start_from(synth_dataset, tmp_path, capsys):
-    """`--epochs 0` trains only on the second looks of a network: without --weights there is none, and with no
-    second-look epochs either there is nothing to train."""
+    """`--epochs 0` trains only on the second looks of a network or its preclassifier: without --weights there is
+    none, and with no second-look or preclassifier epochs either there is nothing to train."""
     out = tmp_path / "robot"
     lines = _refusal_lines(["train-robot", str(synth_dataset), "--out", str(out), "--epochs", "0",
                             "--second-look-epochs", "6"], capsys)
-    assert "--epochs 0 trains a network on its second looks only" in lines[0] and "--weights" in lines[0], lines
+    assert "--epochs 0 trains no new crop network" in lines[0] and "--weights" in lines[0], lines
     lines = _refusal_lines(["train-robot", str(synth_dataset), "--out", str(out), "--epochs", "0", "--weights",
-                            str(ROBOT_WEIGHTS)], capsys)
-    assert "0 epochs and 0 second-look epochs train nothing: give epochs (--epochs)" in lines[0], lines
+                            str(ROBOT_WEIGHTS), "--preclassifier-epochs", "0"], capsys)
+    assert "0 epochs, 0 second-look epochs and 0 preclassifier epochs train nothing" in lines[0], lines
     assert not out.exists()
 
 
@@ -859,3 +871,29 @@ def test_finetune_on_an_export_without_poles_names_the_export_and_a_fix_it_has(d
     lines = _refusal_lines(["finetune", str(dataset_copy), "--out", str(tmp_path / "run"), "--model", "robot"], capsys)
     assert f"{dataset_copy}: no annotated pole" in lines[0] and "annotate the poles" in lines[0], lines
     assert "--paint-from" not in "\n".join(lines) and str(tmp_path / "run") not in lines[0].split(" - ")[0], lines
+
+
+@pytest.mark.parametrize("damage", [
+    '{"format": 1, "kind": "stages", "written_by": "poles", "render": "done"}',
+    '{"format": 1, "kind": "stages", "written_by": "poles", "render": {"name": "render", "key": "k", '
+    '"status": "done", "seconds": 1.0, "note": "added by hand"}}',
+    '{"format": 1, "kind": "stages", "written_by": "poles", "render": {"na',
+    '{"format": "1", "kind": "stages", "written_by": "poles"}'])
+def test_a_damaged_stage_ledger_says_what_to_do_with_the_run_folder(damage, tmp_path):
+    """A string for an entry, a field added by hand, a truncated file, a format number written as text: one message
+    that names the file and says the folder cannot be resumed, never a TypeError."""
+    from detector.stages import StageLedger
+
+    (tmp_path / "stages.json").write_text(damage)
+    with pytest.raises(ValueError) as refused:
+        StageLedger(tmp_path)
+    message = str(refused.value)
+    assert message.startswith(str(tmp_path / "stages.json")) and "TypeError" not in message
+    assert f"the run folder {tmp_path} cannot be resumed - remove it to start the run again" in message
+
+
+def test_a_maybe_threshold_above_the_threshold_is_refused_naming_the_options(tmp_path, capsys):
+    lines = _refusal_lines(["slam", "--sim", "square", "--frontend", "shipped-robot", "--conf", "0.5",
+                            "--maybe-conf", "0.9", "--out", str(tmp_path / "out")], capsys)
+    assert lines[0].startswith("poles slam: --maybe-conf 0.9 lies above --conf 0.5") and "maybe_confidence" not in lines[0]
+    assert not (tmp_path / "out").exists()

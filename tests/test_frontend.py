@@ -35,6 +35,11 @@ def padded_onnx(tiny_weights, tmp_path_factory):
 
 @pytest.mark.parametrize("which", ["rectangular", "padded"])
 def test_front_end_matches_ultralytics_predict(which, tiny_onnx, padded_onnx, synth_dataset):
+    """Every detection, down to confidence 0.001, with Ultralytics' box, score and mask to float rounding. The masks
+    once differed by up to a fifth (IoU 0.77) where a diffuse mask of the untrained tiny model reached the frame's
+    edge beside the letterbox's padding: the front end interpolated into the padding's cells, Ultralytics replicates
+    the content's last cell. Which of the tiny model's masks reach that edge depends on how the CPU's kernels round
+    its training, so the test passed on one machine and failed on another."""
     model = tiny_onnx if which == "rectangular" else padded_onnx
     frames = _frames(synth_dataset)
     reference = ultralytics_predict(model, frames, read_info(model).input_hw, conf=0.001)
@@ -43,7 +48,7 @@ def test_front_end_matches_ultralytics_predict(which, tiny_onnx, padded_onnx, sy
     assert agreement.reference > 20 and agreement.matched == agreement.reference == agreement.candidate
     assert agreement.class_mismatches == 0
     assert agreement.box_iou_min >= 0.99
-    assert agreement.mask_iou_mean >= 0.95 and agreement.mask_iou_min >= 0.8
+    assert agreement.mask_iou_mean >= 0.999 and agreement.mask_iou_min >= 0.99
     assert agreement.score_diff_max < 1e-4
 
 

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from detector.atomic import write_json
 from detector.cli import main
 from detector.errors import keep_on_interrupt, os_error_message, run_command
 from detector.outputs import OUTPUT_MARKER, fresh_path
@@ -208,3 +209,15 @@ def test_check_in_a_folder_it_cannot_write_keeps_its_list_in_the_temporary_folde
     written = tmp_path / "temporary" / f"check-{dataset_copy.name}.txt"
     assert written.is_file() and not any(here.iterdir())
     assert str(written) in capsys.readouterr().out.replace("\n", "")
+
+
+def test_every_json_file_is_strict_json_with_null_where_a_figure_is_not_finite(tmp_path):
+    """``Infinity`` and ``NaN`` are not JSON: strict readers such as jq refuse a file that holds them."""
+    path = write_json(tmp_path / "figures.json", {"f1": float("nan"), "minutes": [1.5, float("inf")],
+                                                  "nested": {"low": -float("inf"), "pair": (2.0, "x")}})
+
+    def refuse(name: str):
+        raise ValueError(f"not strict JSON: {name}")
+
+    assert json.loads(path.read_text(), parse_constant=refuse) == {
+        "f1": None, "minutes": [1.5, None], "nested": {"low": None, "pair": [2.0, "x"]}}

@@ -30,6 +30,7 @@ from detector.synth.scene import SceneConfig, calibration_scene
 from naoslam.camera import PinholeCamera
 from naoslam.perception.candidates import (BAND_PER_WIDTH, MAX_CANDIDATES, MAX_CANDIDATES_WITHOUT_POSE,
                                            CandidateFinder, window_around_box)
+from naoslam.perception.preclassifier import preclassifier_entry
 from naoslam.perception.two_stage import REFINE_CONF, CropDetector
 from naoslam.perception.crops import crop_window, to_crop, to_frame
 from naoslam.perception.detections import Detection
@@ -181,7 +182,8 @@ def test_a_window_reaching_outside_the_frame_is_black_there():
 
 @pytest.fixture(scope="module")
 def tiny_crop_model(synth_dataset, tmp_path_factory):
-    """The crop network trained for two epochs on the session's rendered frames, exported to ONNX."""
+    """The crop network trained for two epochs on the session's rendered frames, exported to ONNX: its path, its
+    crops, its epochs and the network."""
     from detector.crops.export import export_crop_network
     from detector.crops.network import PoleCropNet
     from detector.crops.settings import CropTrainSettings
@@ -192,11 +194,11 @@ def tiny_crop_model(synth_dataset, tmp_path_factory):
                                           PoleCropNet(TINY), log=lambda line: None)
     path = tmp_path_factory.mktemp("crops") / "crops.onnx"
     export_crop_network(network, path, crops.crops[:32], conf=0.3)
-    return path, crops, history
+    return path, crops, history, network
 
 
 def test_the_crop_set_names_poles_and_backgrounds_with_boxes_for_poles(tiny_crop_model):
-    _, crops, _ = tiny_crop_model
+    _, crops, _, _ = tiny_crop_model
     poles = crops.classes != NO_POLE
     assert poles.any() and (~poles).any()
     assert np.isfinite(crops.boxes[poles]).all() and np.isnan(crops.boxes[~poles]).all()
@@ -204,7 +206,7 @@ def test_the_crop_set_names_poles_and_backgrounds_with_boxes_for_poles(tiny_crop
 
 
 def test_the_crop_network_trains_and_its_export_loads_as_the_two_stage_front_end(tiny_crop_model, synth_dataset):
-    path, _, history = tiny_crop_model
+    path, _, history, _ = tiny_crop_model
     assert len(history) == 2 and history[-1].loss < history[0].loss
     detector = load_detector(path, conf=0.01)
     assert isinstance(detector, CropDetector) and detector.size_wh == CROP_WH
@@ -222,12 +224,11 @@ def test_the_crop_network_runs_in_openvino_at_the_atoms_instruction_set_as_in_py
     pytest.importorskip("openvino")
     from detector.speed import worker_environment
 
-    path, crops, _ = tiny_crop_model
+    path, crops, _, _ = tiny_crop_model
     blob = np.ascontiguousarray(crops.crops[:8].transpose(0, 3, 1, 2), np.float32) / 255.0
     expected = ort_output(path, blob)
-    code = ("import sys, numpy as np, openvino as ov; blob = np.load(sys.argv[1]); "
-            "compiled = ov.Core().compile_model(sys.argv[2], 'CPU', {'INFERENCE_NUM_THREADS': 1}); "
-            "np.save(sys.argv[1], compiled(blob)[0])")
+    code = ("import sys, numpy as np; from naoslam.perception.engines import OpenVinoForward; "
+            "blob = np.load(sys.argv[1]); np.save(sys.argv[1], OpenVinoForward(sys.argv[2], 1)(blob)[0])")
     with tempfile.TemporaryDirectory() as folder:
         saved = str(Path(folder) / "blob.npy")
         np.save(saved, blob)
@@ -252,7 +253,7 @@ def test_the_crop_network_keeps_the_best_epoch_or_the_last_as_asked(tiny_crop_mo
     from detector.crops.settings import CropTrainSettings
     from detector.crops.train import train_crop_network, validate
 
-    _, crops, _ = tiny_crop_model
+    _, crops, _, _ = tiny_crop_model
     network, history = train_crop_network(crops, crops, CropTrainSettings(epochs=3, batch=64, threads=1, keep=keep),
                                           PoleCropNet(TINY), log=lambda line: None)
     kept = history[-1] if keep == "last" else max(history, key=lambda epoch: epoch.score)
@@ -279,16 +280,38 @@ def test_train_robot_prints_and_keeps_what_it_made(synth_dataset, tmp_path, caps
     assert [row["epoch"] for row in kept["history"]] == [1, 2] and printed.best_epoch.epoch == 2
     assert printed.second_look_crops > 0 and any(line.startswith("second looks: ") for line in lines)
     assert isinstance(load_detector(printed.model), CropDetector) and 0 < printed.operating_conf < 1
+    assert printed.preclassifier is not None and printed.preclassifier.kept_poles >= 0.99
+    assert load_detector(printed.model).preclassifier.threshold == pytest.approx(printed.preclassifier.threshold)
+
+
+def test_train_robot_adds_a_preclassifier_to_a_trained_network_and_leaves_the_network_as_it_was(synth_dataset,
+                                                                                                tmp_path):
+    from detector.cli import main
+
+    out = tmp_path / "robot"
+    assert main(["train-robot", str(synth_dataset), "--out", str(out), "--epochs", "0", "--threads", "1",
+                 "--weights", str(ROBOT_WEIGHTS), "--preclassifier-epochs", "1"]) == 0
+    trained, shipped = CropDetector(out / "poles-robot.onnx"), CropDetector("shipped-robot", preclassify=False)
+    assert trained.preclassifier is not None
+    crops = np.random.default_rng(0).random((4, 3, 48, 24), dtype=np.float32)
+    assert np.abs(trained.forward(crops) - shipped.forward(crops)).max() < 1e-4
+    history = read_record(out / "history.json", "robot training")
+    assert history["epochs"] == 0 and history["best_epoch"] is None and history["preclassifier"]["parameters"] > 0
 
 
 def test_a_second_look_goes_to_each_likely_pole_s_box_at_its_own_scale():
     detector = CropDetector("shipped-robot")
-    out = np.zeros((3, len(CLASSES) + 1 + 4), np.float32)
-    out[0, 2], out[1, 0], out[2, 4] = 0.5, REFINE_CONF / 2, 0.9
-    boxes = np.array([[100, 50, 120, 130], [200, 60, 220, 140], [300, 70, 300, 150]], float)  # the last no wider than 0
-    again, windows = detector.second_look_windows(out, boxes, (240, 320))
-    assert again.tolist() == [0]
-    assert windows.tolist() == [list(window_around_box(tuple(boxes[0]), (240, 320)))]
+    out = np.zeros((6, len(CLASSES) + 1 + 4), np.float32)
+    out[0, 2], out[1, 0], out[2, 4], out[3, 1], out[4, 3], out[5, 5] = 0.5, REFINE_CONF / 2, 0.9, 0.4, 0.7, 0.8
+    boxes = np.array([[100, 50, 120, 130], [200, 60, 220, 140], [300, 70, 300, 150],  # the third no wider than 0
+                      [101, 52, 121, 131],  # the first pole again, less sure: one second look per pole
+                      [10, 20, 30, 100], [250, 10, 262, 58]], float)
+    first = np.array([[80, 10, 140, 190], [190, 40, 230, 160], [290, 50, 310, 170], [80, 10, 140, 190],
+                      window_around_box(tuple(boxes[4]), (240, 320)),  # already framed at its own scale
+                      [200, 0, 300, 200]], float)
+    again, windows = detector.second_look_windows(out, boxes, first, (240, 320))
+    assert sorted(again.tolist()) == [0, 5]
+    assert windows[again.tolist().index(0)].tolist() == list(window_around_box(tuple(boxes[0]), (240, 320)))
 
 
 def test_second_look_crops_hold_the_poles_the_first_look_finds_centred(synth_dataset):
@@ -303,8 +326,99 @@ def test_second_look_crops_hold_the_poles_the_first_look_finds_centred(synth_dat
     assert np.isnan(crops.boxes[~poles]).all()
 
 
+@pytest.fixture(scope="module")
+def tiny_cascade(tiny_crop_model, synth_dataset, tmp_path_factory):
+    """The tiny crop network with a preclassifier trained for two epochs on the same windows, stored in its file."""
+    import torch
+
+    from detector.crops.preclassifier import PRECLASSIFIER_SIZE_WH, preclassifier_onnx, train_preclassifier
+    from detector.crops.settings import CropTrainSettings
+    from detector.model_files import add_metadata
+
+    path, crops, _, network = tiny_crop_model
+    small = crops_of_dataset(load_dataset(synth_dataset), ("train", "valid", "test"), PRECLASSIFIER_SIZE_WH,
+                             progress=False)
+    preclassifier, result = train_preclassifier(small, small, crops, network,
+                                                CropTrainSettings(epochs=2, batch=64, threads=1),
+                                                log=lambda line: None)
+    graph = preclassifier_onnx(preclassifier, small.crops[:16])
+    model = tmp_path_factory.mktemp("cascade") / "cascade.onnx"
+    model.write_bytes(path.read_bytes())
+    add_metadata(model, preclassifier=preclassifier_entry(graph, result.threshold, result.kept_poles,
+                                                          result.rejected_clutter))
+    with torch.no_grad():
+        expected = torch.sigmoid(preclassifier(torch.from_numpy(
+            small.crops[:8].transpose(0, 3, 1, 2).astype(np.float32) / 255.0)))[:, 0].numpy()
+    return model, small, result, expected
+
+
+def test_the_preclassifier_keeps_the_poles_the_crop_network_names_and_rejects_clutter(tiny_cascade):
+    _, small, result, _ = tiny_cascade
+    assert small.crops.shape[1:3] == (24, 12)
+    assert result.kept_poles >= 0.99 and 0 <= result.rejected_clutter <= 1 and result.parameters < 10_000
+
+
+def test_the_preclassifier_in_the_model_file_runs_torch_free_at_the_atoms_instruction_set(tiny_cascade):
+    """The graph stored in the crop network's metadata gives PyTorch's answers through onnxruntime, and through
+    OpenVINO in a process capped at the Atom's instruction set; loading it imports nothing of the training side."""
+    pytest.importorskip("openvino")
+    from detector.speed import worker_environment
+
+    model, small, _, expected = tiny_cascade
+    blob = np.ascontiguousarray(small.crops[:8].transpose(0, 3, 1, 2), np.float32) / 255.0
+    detector = CropDetector(model, threads=1)
+    assert detector.preclassifier is not None and detector.preclassifier.size_wh == (12, 24)
+    assert np.abs(detector.preclassifier.scores(blob) - expected).max() < 1e-4
+    code = ("import sys, numpy as np; from naoslam.perception.two_stage import CropDetector; "
+            "blob = np.load(sys.argv[1]); detector = CropDetector(sys.argv[2], threads=1, engine='openvino'); "
+            "np.save(sys.argv[1], detector.preclassifier.scores(blob)); "
+            "bad = [m for m in ('torch', 'ultralytics', 'detector') if m in sys.modules]; sys.exit(1 if bad else 0)")
+    with tempfile.TemporaryDirectory() as folder:
+        saved = str(Path(folder) / "blob.npy")
+        np.save(saved, blob)
+        result = subprocess.run([sys.executable, "-c", code, saved, str(model)], env=worker_environment(capped=True),
+                                capture_output=True, text=True)
+        assert result.returncode == 0, result.stderr[-2000:]
+        assert np.abs(np.load(saved) - expected).max() < 1e-4
+
+
+def test_the_window_budget_holds_on_a_frame_full_of_pink_clutter(tiny_cascade):
+    """Pink over blue stripes everywhere: the finder fills its cap, and with a preclassifier that passes every window
+    the crop network still looks at no more than the budget, and the front end says the frame hit it."""
+    model, _, _, _ = tiny_cascade
+    frame = np.zeros((480, 640, 3), np.uint8)
+    for row in range(0, 480, 16):
+        frame[row:row + 8] = (90, 40, 230) if (row // 16) % 2 else (200, 60, 30)  # pink, then blue (BGR)
+    frame[:, ::40] = 255  # cut into columns, so there are many anchors
+    detector = CropDetector(model, threads=1, conf=0.01, window_budget=3)
+    detector.preclassifier.threshold = 0.0
+    detector(frame)
+    assert detector.cost.windows == MAX_CANDIDATES_WITHOUT_POSE
+    assert detector.cost.looked_at == 3 and detector.cost.hit_budget and detector.cost.second_looks <= 3
+    everything = CropDetector(model, threads=1, conf=0.01, preclassify=False)
+    everything(frame)
+    assert everything.cost.looked_at == MAX_CANDIDATES_WITHOUT_POSE and not everything.cost.hit_budget
+    with pytest.raises(ValueError, match="window budget 0"):
+        CropDetector(model, window_budget=0)
+
+
+def test_the_shipped_robot_model_carries_a_preclassifier_that_rejects_most_windows_of_real_clutter():
+    """Frames without poles (photographs a pole model never saw) fill the finder's windows; the shipped
+    preclassifier lets at most the budget through to the crop network."""
+    detector = CropDetector("shipped-robot", threads=1)
+    assert detector.preclassifier is not None
+    looked = []
+    for name in ("astronaut", "coffee", "chelsea", "rocket"):
+        from skimage import data as images
+
+        frame = cv2.cvtColor(getattr(images, name)(), cv2.COLOR_RGB2BGR)
+        detector(frame)
+        looked.append((detector.cost.windows, detector.cost.looked_at))
+    assert sum(w for w, _ in looked) > 20 and sum(k for _, k in looked) <= sum(w for w, _ in looked) / 2, looked
+
+
 def test_the_two_stage_front_end_runs_without_the_training_side(tiny_crop_model):
-    path, _, _ = tiny_crop_model
+    path, _, _, _ = tiny_crop_model
     assert_runs_without_training_side(
         f"import naoslam; naoslam.load_detector({str(path)!r}, conf=0.01)(np.zeros((240, 320, 3), np.uint8))")
 

@@ -48,6 +48,19 @@ def positive_number(text: str) -> float:
     return value
 
 
+#: The longest budget a time option takes, in minutes: a week. A larger one is a slip, and overflows the planner's
+#: arithmetic to infinity.
+MAX_MINUTES = 7 * 24 * 60
+
+
+def minutes_number(text: str) -> float:
+    """An argparse type for a time budget in minutes: above 0 and at most ``MAX_MINUTES``."""
+    value = positive_number(text)
+    if value > MAX_MINUTES:
+        raise argparse.ArgumentTypeError(f"{text!r}: give at most {MAX_MINUTES} minutes (a week)")
+    return value
+
+
 def whole_number(minimum: int) -> Callable[[str], int]:
     """An argparse type for a count or a seed: a whole number, ``minimum`` or more."""
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from detector.cli.arguments import positive_number, whole_number
+from detector.cli.arguments import minutes_number, whole_number
 from detector.training.openmp_wait import choose_wait_policy
 
 
@@ -14,7 +14,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     demo.add_argument("--out", type=Path, default=Path("runs/demo"))
     demo.add_argument("--budget", choices=("fast", "full"), default="fast",
                       help="fast: about 15 minutes on two cores (default); full: the thesis's settings (days)")
-    demo.add_argument("--minutes", type=positive_number,
+    demo.add_argument("--minutes", type=minutes_number,
                       help="the whole run's time on this machine with the fast budget (default 12): training gets "
                            "what the other stages leave")
     demo.add_argument("--seed", type=whole_number(0), default=0)

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from detector.cli.arguments import finite_number, positive_number, whole_number
+from detector.cli.arguments import finite_number, minutes_number, positive_number, whole_number
 from detector.finetune.recipe import STARTING_MODELS, FinetuneRecipe
 
 DEFAULTS = FinetuneRecipe()
@@ -22,7 +22,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     finetune.add_argument("--model", choices=STARTING_MODELS, default=DEFAULTS.model,
                           help="the shipped model to start from: accurate (default; FP32 + INT8 out) or robot (the "
                                "two-stage front end for the Nao: its crop network; FP32 out)")
-    finetune.add_argument("--minutes", type=positive_number, default=DEFAULTS.minutes,
+    finetune.add_argument("--minutes", type=minutes_number, default=DEFAULTS.minutes,
                           help=f"the whole job's time on this machine (default {DEFAULTS.minutes:g}); training "
                                "gets what preparing and evaluating leave")
     finetune.add_argument("--epochs", type=whole_number(1),

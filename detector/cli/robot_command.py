@@ -1,13 +1,14 @@
 """``poles train-robot``: the robot's two-stage front end trained from annotated frames on the CPU - crops of the
 finder's candidates, the crop network trained on them (and, if asked, on its own second looks), exported to ONNX and
-checked against PyTorch, its operating threshold chosen on the valid frames."""
+checked against PyTorch, a preclassifier trained to spare it most windows, its operating threshold chosen on the
+valid frames."""
 from __future__ import annotations
 
 import argparse
 import json
 from pathlib import Path
 
-from detector.cli.arguments import existing, positive_number, whole_number
+from detector.cli.arguments import existing, minutes_number, whole_number
 from detector.crops.settings import CropTrainSettings
 
 #: ``poles train-robot``'s defaults, read by its help.
@@ -30,7 +31,11 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     robot.add_argument("--second-look-epochs", type=whole_number(0), default=DEFAULTS.second_look_epochs,
                        help="epochs more with the crops of the second looks the trained network takes added "
                             f"(default {DEFAULTS.second_look_epochs}: none; 6 to use them)")
-    robot.add_argument("--minutes", type=positive_number,
+    robot.add_argument("--preclassifier-epochs", type=whole_number(0), default=DEFAULTS.preclassifier_epochs,
+                       help="epochs of the preclassifier that rejects most windows before the crop network sees them, "
+                            f"stored in the model (default {DEFAULTS.preclassifier_epochs}; 0: none, every window "
+                            "goes through the crop network)")
+    robot.add_argument("--minutes", type=minutes_number,
                        help="stop training after this many minutes even if epochs are left")
     robot.add_argument("--seed", type=whole_number(0), default=DEFAULTS.seed,
                        help=f"random seed (default {DEFAULTS.seed})")
@@ -44,7 +49,8 @@ def _train_robot(args: argparse.Namespace) -> int:
     from detector.robot_training import train_robot_front_end
 
     settings = CropTrainSettings(epochs=args.epochs, seed=args.seed, threads=args.threads, minutes=args.minutes,
-                                 second_look_epochs=args.second_look_epochs)
+                                 second_look_epochs=args.second_look_epochs,
+                                 preclassifier_epochs=args.preclassifier_epochs)
     result = train_robot_front_end(args.data, args.out, settings, args.weights, args.force,
                                    protect=existing(*args.data, args.weights))
     print(json.dumps(result.to_json(), indent=1))

@@ -135,6 +135,9 @@ def _slam(args: argparse.Namespace) -> int:
         raise ValueError("--imgsz is a model's input width: give --frontend model.onnx or shipped")
     if args.maybe_conf is not None and not frontend:
         raise ValueError("--maybe-conf is a front end's lower threshold: give --frontend (or --frames)")
+    if args.maybe_conf is not None and args.conf is not None and args.maybe_conf > args.conf:
+        raise ValueError(f"--maybe-conf {args.maybe_conf:g} lies above --conf {args.conf:g}: the maybe tier takes "
+                         "the sightings under the threshold - give a --maybe-conf at most --conf")
     front_end = FrontEndSpec(frontend, calibration, args.conf, args.imgsz, args.maybe_conf) if frontend else None
     make = _sequence_maker(args, front_end)
     with flags_for(FLAGS):

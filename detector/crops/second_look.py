@@ -21,8 +21,8 @@ def second_look_crops(detector: CropDetector, datasets: list[Dataset], split: st
             if not candidates:
                 continue
             frame_hw = frame.shape[:2]
-            first = detector.first_look(frame, np.array([c.window for c in candidates]))
-            _, again = detector.second_look_windows(*first, frame_hw)
+            out, boxes, windows = detector.first_look(frame, np.array([c.window for c in candidates]))
+            _, again = detector.second_look_windows(out, boxes, windows, frame_hw)
             boxes = label_boxes(sample, frame_hw[1], frame_hw[0])
             kept, targets = labelled_windows([tuple(w) for w in again], boxes, frame_hw)
             sets.append(crops_at(frame, kept, targets, boxes, [i.cls for i in sample.instances], detector.size_wh))

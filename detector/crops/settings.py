@@ -25,16 +25,21 @@ class CropTrainSettings:
     #: Epochs trained on after the first ``epochs``, with the second-look crops the network's own first look finds
     #: added (``detector.crops.second_look``); 0: none.
     second_look_epochs: int = 0
+    #: Epochs of the preclassifier (``detector.crops.preclassifier``) trained on the same crops after the crop
+    #: network, and stored in its model file; 0: none (the crop network then looks at every window).
+    preclassifier_epochs: int = 10
 
     def __post_init__(self) -> None:
         if self.epochs < 0 or self.batch < 1 or self.threads < 1:
             raise ValueError(f"epochs {self.epochs}, batch {self.batch}, threads {self.threads}: give 0 or more epochs, "
                              "1 or more of the rest")
-        if self.epochs == 0 and self.second_look_epochs == 0:
-            raise ValueError("0 epochs and 0 second-look epochs train nothing: give epochs (--epochs) or second-look "
-                             "epochs (--second-look-epochs)")
-        if self.second_look_epochs < 0:
-            raise ValueError(f"second-look epochs {self.second_look_epochs}: give 0 (none) or more")
+        if self.epochs == 0 and self.second_look_epochs == 0 and self.preclassifier_epochs == 0:
+            raise ValueError("0 epochs, 0 second-look epochs and 0 preclassifier epochs train nothing: give epochs "
+                             "(--epochs), second-look epochs (--second-look-epochs) or preclassifier epochs "
+                             "(--preclassifier-epochs)")
+        for name, epochs in (("second-look", self.second_look_epochs), ("preclassifier", self.preclassifier_epochs)):
+            if epochs < 0:
+                raise ValueError(f"{name} epochs {epochs}: give 0 (none) or more")
         if not (self.learning_rate > 0 and self.weight_decay >= 0):
             raise ValueError(f"learning rate {self.learning_rate} must be above 0, weight decay {self.weight_decay} "
                              "not below")

@@ -34,7 +34,9 @@ PINK_HSV = (((135, 179), (0, 4)), 40, 20)
 BAND_HSV = ((15, 128), 40, 15)
 #: Frame rows per scanned row at 480 rows (scaled with the frame's height): a pole 9 m away shows bands 7 rows tall.
 ROW_STEP_AT_480 = 4
-#: Frame columns per scanned column: one per pixel pair, the chroma resolution of the camera's YUYV.
+#: Frame columns per scanned column: one per pixel pair, the chroma resolution of the camera's YUYV. (Scaled with the
+#: frame's width, a 1280x960 frame scanned every fourth column opened a window on a photograph's tie that the crop
+#: network took for a pole: the columns stay dense.)
 COLUMN_STEP = 2
 #: A frame narrower or lower than this many pixels shows no pole the grid could find (a pole's band spans a few rows
 #: and columns even 9 m away): it has no candidates.
@@ -51,6 +53,9 @@ DUPLICATE_IOU = 0.5
 #: network's batch. With the pose the windows are ranked by their fit, so the cap reaches into a busy frame's poorer
 #: fits; without it the whole frame is seen and each window costs the same time.
 MAX_CANDIDATES, MAX_CANDIDATES_WITHOUT_POSE = 32, 24
+#: Each kind's best windows looked at for overlaps, per window kept: the rest of a cluttered frame's hundreds of
+#: anchors could only come after them.
+RANKED_PER_KEPT = 4
 #: With the pose, how much an anchor narrower than the pole its place predicts counts against it, against one as
 #: much wider: a near pole's line between the bands, tilted or shaded, crosses a scanned row pair in pieces.
 NARROW_ANCHOR_WEIGHT = 0.25
@@ -166,7 +171,9 @@ class CandidateFinder:
         step = row_step(frame.shape[0])
         pink, band = colour_masks(scan_grid_bgr(frame, slice(top, frame.shape[0], step)))
         joined = cv2.morphologyEx(junction_mask(pink, band), cv2.MORPH_CLOSE, JOIN_KERNEL)
-        ranked = [(kind, *self._windows(kind, self._anchors(kind, _blobs(mask), top, step), view))
+        looked_at = RANKED_PER_KEPT * self.cap(view is not None)
+        ranked = [(kind, *(part[:looked_at] for part in self._windows(
+                      kind, self._anchors(kind, _blobs(mask), top, step), view)))
                   for kind, mask in (("junction", joined), ("pink", pink))]
         kinds = np.array([kind for kind, windows, _ in ranked for _ in windows])
         windows = np.concatenate([windows for _, windows, _ in ranked])
@@ -180,8 +187,9 @@ class CandidateFinder:
         ranks = (len(windows) - np.arange(len(windows))).astype(float)  # earlier is better
         kept = cv2.dnn.NMSBoxes(np.concatenate([windows[:, :2], sizes], 1).tolist(), ranks.tolist(), 0.0,
                                 DUPLICATE_IOU)
-        kept = sorted(np.asarray(kept, int).reshape(-1))[: self.cap(view is not None)]
-        return [Candidate(tuple(windows[i]), tuple(int(v) for v in anchors[i]), kinds[i]) for i in kept]
+        kept = np.sort(np.asarray(kept, int).reshape(-1))[: self.cap(view is not None)]
+        return [Candidate(tuple(window), tuple(anchor), str(kind)) for window, anchor, kind in
+                zip(windows[kept].tolist(), anchors[kept].astype(int).tolist(), kinds[kept])]
 
     def cap(self, with_pose: bool) -> int:
         """The most candidates a frame keeps: the one asked for, else ``MAX_CANDIDATES`` with the pose and

@@ -13,20 +13,31 @@ import numpy as np
 ENGINES = ("onnxruntime", "openvino")
 
 
+def openvino_config(threads: int | None = None, **extra) -> dict:
+    """The settings of every OpenVINO compile in the project: latency, and the f32 precision hint. Without the hint
+    OpenVINO runs bf16 on a CPU with AVX-512 BF16, whose answers differ from onnxruntime's, and under the Atom's
+    instruction-set cap (no bf16) it then fails to compile or crashes; the Atom has no bf16, so every compile that
+    stands for the robot says f32. ``extra``: more OpenVINO properties (a profiler's ``PERF_COUNT``)."""
+    config = {"PERFORMANCE_HINT": "LATENCY", "INFERENCE_PRECISION_HINT": "f32", **extra}
+    if threads:
+        config["INFERENCE_NUM_THREADS"] = threads
+    return config
+
+
 class OpenVinoForward:
     """An OpenVINO model compiled once per input shape (the band below the horizon changes height), f32 precision
     hint on float layers so FP32 answers match onnxruntime's."""
 
-    def __init__(self, model: Path | str | object, threads: int | None = None):
+    def __init__(self, model: Path | str | bytes | object, threads: int | None = None):
         try:
             import openvino as ov  # the optional engine: onnxruntime is the runtime's own
         except ImportError:
             raise ValueError("engine 'openvino' needs the openvino package: pip install openvino") from None
         self.core = ov.Core()
-        self.model = self.core.read_model(str(model)) if isinstance(model, (str, Path)) else model
-        self.config = {"PERFORMANCE_HINT": "LATENCY", "INFERENCE_PRECISION_HINT": "f32"}
-        if threads:
-            self.config["INFERENCE_NUM_THREADS"] = threads
+        if isinstance(model, (str, Path)):
+            model = self.core.read_model(str(model))
+        self.model = self.core.read_model(model) if isinstance(model, bytes) else model  # bytes: an ONNX graph
+        self.threads = threads
         self.compiled: dict[tuple[int, ...], object] = {}
 
     def __call__(self, blob: np.ndarray) -> list[np.ndarray]:
@@ -34,6 +45,35 @@ class OpenVinoForward:
         if shape not in self.compiled:
             model = self.model.clone()
             model.reshape({model.inputs[0].any_name: list(shape)})
-            self.compiled[shape] = self.core.compile_model(model, "CPU", self.config)
+            self.compiled[shape] = self.core.compile_model(model, "CPU", openvino_config(self.threads))
         result = self.compiled[shape](blob)
         return [result[i] for i in range(len(result))]
+
+
+def padded_count(count: int) -> int:
+    """The batch a count of crops is run as: up to ``EXACT_BATCHES`` as it is, above that the next multiple of it,
+    so OpenVINO compiles a few shapes, not one per count (a padded crop costs as much as a real one)."""
+    return count if count <= EXACT_BATCHES else -(-count // EXACT_BATCHES) * EXACT_BATCHES
+
+
+#: Batches up to this size run as they are; larger ones are padded to a multiple of it.
+EXACT_BATCHES = 8
+
+
+class BatchNetwork:
+    """A crop network run on (N, 3, H, W) batches, its first output's rows for the real crops: through onnxruntime
+    (``session``) or OpenVINO (compiled from ``model``, a path or ONNX bytes), the batch padded with zeros to
+    :func:`padded_count`."""
+
+    def __init__(self, session, model: Path | str | bytes, engine: str = "onnxruntime", threads: int | None = None):
+        self.session, self.input_name = session, session.get_inputs()[0].name
+        self._openvino = OpenVinoForward(model, threads) if engine == "openvino" else None
+
+    def __call__(self, blob: np.ndarray) -> np.ndarray:
+        count = len(blob)
+        padded = padded_count(count)
+        if padded != count:
+            blob = np.concatenate([blob, np.zeros((padded - count,) + blob.shape[1:], blob.dtype)])
+        out = self._openvino(blob)[0] if self._openvino is not None else \
+            self.session.run(None, {self.input_name: blob})[0]
+        return out[:count]

@@ -24,6 +24,17 @@ def valid_confidence(conf: float) -> float:
     return conf
 
 
+def session_options(threads: int | None = None) -> ort.SessionOptions:
+    """onnxruntime's settings for every network the runtime runs: ``threads`` (None: one per usable core), every graph
+    optimisation, and idle worker threads that sleep instead of spinning (the robot's other processes need the cores
+    between frames)."""
+    options = ort.SessionOptions()
+    options.intra_op_num_threads = threads or usable_cores()
+    options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
+    options.add_session_config_entry("session.intra_op.allow_spinning", "0")
+    return options
+
+
 def load_session(path: Path | str, threads: int | None = None) -> ort.InferenceSession:
     """An onnxruntime CPU session; a missing or unreadable file raises an error that names it."""
     path = Path(path)
@@ -32,13 +43,8 @@ def load_session(path: Path | str, threads: int | None = None) -> ort.InferenceS
     if path.suffix == ".pt":
         raise ValueError(f"{path}: a PyTorch checkpoint; the runtime runs its ONNX export - "
                          f"`poles export --weights {path} --out {path.with_suffix('.onnx')}`")
-    options = ort.SessionOptions()
-    options.intra_op_num_threads = threads or usable_cores()
-    options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
-    # Idle worker threads sleep instead of spinning: the robot's other processes need the cores between frames.
-    options.add_session_config_entry("session.intra_op.allow_spinning", "0")
     try:
-        return ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
+        return ort.InferenceSession(str(path), session_options(threads), providers=["CPUExecutionProvider"])
     except Exception as exc:  # onnxruntime raises several private exception types
         raise ValueError(f"{path}: not a readable ONNX model ({str(exc).splitlines()[0][:200]}) - "
                          "re-export it with `poles export`") from None

@@ -65,6 +65,14 @@ class Letterbox:
         out[:, [1, 3]] = out[:, [1, 3]].clip(0, self.frame_hw[0])
         return out
 
+    def content_in_proto(self, proto_hw: tuple[int, int]) -> tuple[int, int, int, int]:
+        """The prototype cells (c0, r0, c1, r1; end exclusive) that hold the frame, not the letterbox's padding, as
+        Ultralytics' ``scale_masks`` crops them before it interpolates (so a mask at the frame's edge replicates the
+        content's last cell instead of blending into the padding)."""
+        fy, fx = proto_hw[0] / self.input_hw[0], proto_hw[1] / self.input_hw[1]
+        r0, c0 = round(self.top * fy - 0.1), round(self.left * fx - 0.1)
+        return (c0, r0, c0 + max(round(self.content_hw[1] * fx), 1), r0 + max(round(self.content_hw[0] * fy), 1))
+
     def frame_to_proto(self, proto_hw: tuple[int, int]) -> tuple[float, float, float, float]:
         """Affine map (scale_x, offset_x, scale_y, offset_y) from frame pixel index to prototype-map pixel index."""
         fy, fx = proto_hw[0] / self.input_hw[0], proto_hw[1] / self.input_hw[1]
@@ -242,9 +250,11 @@ def _mask_in_box(coefficients: np.ndarray, protos: np.ndarray, frame_box: np.nda
     if c1 <= c0 or r1 <= r0:
         return np.zeros((0, 0), dtype=bool), (c0, r0)
     sx, ox, sy, oy = box.frame_to_proto((proto_h, proto_w))
-    # Prototype window covering the box with one cell of margin, so interpolation at its edge is exact.
-    p0 = max(int(np.floor(c0 * sx + ox)) - 1, 0), max(int(np.floor(r0 * sy + oy)) - 1, 0)
-    p1 = min(int(np.ceil((c1 - 1) * sx + ox)) + 2, proto_w), min(int(np.ceil((r1 - 1) * sy + oy)) + 2, proto_h)
+    # Prototype window covering the box with one cell of margin, so interpolation at its edge is exact, inside the
+    # cells that hold the frame: at the padding's edge the border is replicated from the content.
+    content = box.content_in_proto((proto_h, proto_w))
+    p0 = max(int(np.floor(c0 * sx + ox)) - 1, content[0]), max(int(np.floor(r0 * sy + oy)) - 1, content[1])
+    p1 = min(int(np.ceil((c1 - 1) * sx + ox)) + 2, content[2]), min(int(np.ceil((r1 - 1) * sy + oy)) + 2, content[3])
     window = protos[:, p0[1]:p1[1], p0[0]:p1[0]]
     logits = np.tensordot(coefficients, window, axes=1).astype(np.float32)
     # dst(col, row) = logits(sx * (c0 + col) + ox - p0x, sy * (r0 + row) + oy - p0y)
