@@ -23,6 +23,7 @@ import yaml
 from detector.cli import main
 from detector.datasets import load_dataset
 from detector.outputs import OUTPUT_MARKER
+from detector.synth.generate import SynthJob, generate_dataset
 from detector.model_files import ROBOT_WEIGHTS
 
 
@@ -897,3 +898,30 @@ def test_a_maybe_threshold_above_the_threshold_is_refused_naming_the_options(tmp
                             "--maybe-conf", "0.9", "--out", str(tmp_path / "out")], capsys)
     assert lines[0].startswith("poles slam: --maybe-conf 0.9 lies above --conf 0.5") and "maybe_confidence" not in lines[0]
     assert not (tmp_path / "out").exists()
+
+
+def test_fix_counts_a_coco_class_once_whatever_the_splits_that_label_it(dataset_copy, tmp_path, capsys):
+    """A COCO export has one annotations file per split, and each refuses a class that names no landmark: --fix
+    once said "30 class(es)" for an export of 10."""
+    coco = to_coco(dataset_copy, tmp_path / "coco")
+    splits = 0
+    for path in sorted(coco.glob("*/_annotations.coco.json")):
+        data = json.loads(path.read_text())
+        data["categories"][1]["name"] = "midrib"
+        splits += any(a["category_id"] == 1 for a in data["annotations"])
+        path.write_text(json.dumps(data))
+    assert splits >= 2
+    before = tree_hash(coco)
+    assert main(["check", str(coco), "--fix", "--out", str(tmp_path / "fixed")]) != 0
+    refusal = " ".join(capsys.readouterr().err.split())
+    assert refusal.count("category 1 'midrib' names no landmark and labels") == splits
+    assert "--fix does not delete the outlines of 1 class(es)" in refusal, refusal
+    assert not (tmp_path / "fixed").exists() and tree_hash(coco) == before
+
+
+def test_evaluate_says_a_dataset_s_warning_once_whatever_the_models(tmp_path, capsys):
+    """The square-frame warning was printed once by the command's own check and again by each model's evaluation."""
+    data = generate_dataset(tmp_path / "square", SynthJob(6, seed=3, width=96, height=96), workers=1, progress=False)
+    assert main(["evaluate", str(data), "--model", "shipped-robot", "--model", "colour-filter",
+                 "--out", str(tmp_path / "eval")]) == 0
+    assert capsys.readouterr().err.count("every image is square (96x96)") == 1

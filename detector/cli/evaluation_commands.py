@@ -69,7 +69,8 @@ def _evaluate(args: argparse.Namespace) -> int:
         for predictor in predictors:
             out = folder / predictor.name if len(models) > 1 else folder
             conf = args.conf if args.conf is not None else predictor.operating_conf or DEFAULT_CONF
-            rows.append(evaluate(predictor, args.data, out, args.split, conf, use_pose=args.pose))
+            # the dataset was checked (and its warnings said) once, above
+            rows.append(evaluate(predictor, args.data, out, args.split, conf, use_pose=args.pose, check=False))
     print_metrics(rows)
     print(f"wrote {args.out} (metrics.json, per_image.png, sweep.png, confusion.png, recall_by_width.png, errors/)")
     return 0

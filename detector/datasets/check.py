@@ -195,6 +195,12 @@ def refusal_advice(errors: list[Problem]) -> str:
     return CHECK_ADVICE
 
 
+def unnamed_classes(problems: list[Problem]) -> set[str]:
+    """The classes (as their refusals name them) whose outlines name no landmark: a COCO export refuses one class
+    once per split's annotations file, and counts once here."""
+    return {p.message.split(UNNAMED_CLASS_OUTLINES)[0].strip() for p in problems if UNNAMED_CLASS_OUTLINES in p.message}
+
+
 def write_fixed_copy(report: CheckReport, out: str | Path, force: bool = False) -> Path:
     """Write a cleaned copy: bad label lines dropped, coordinates clipped, unreadable images and orphan labels left out,
     truncated JPEGs re-encoded and images stored turned (EXIF orientation) written upright.
@@ -210,8 +216,9 @@ def write_fixed_copy(report: CheckReport, out: str | Path, force: bool = False) 
                                               "box label(s) into outlines", "re-export the dataset")], advice=None)
     unnamed = [p for p in report.errors if UNNAMED_CLASS_OUTLINES in p.message]
     if unnamed:  # dropping them would leave a copy that passes `check` and trains on fewer poles, or none
+        classes = len(unnamed_classes(unnamed))
         raise DatasetError([*unnamed, Problem("error", report.dataset.root, None, f"--fix does not delete the "
-                                              f"outlines of {len(unnamed)} class(es) that name no landmark",
+                                              f"outlines of {classes} class(es) that name no landmark",
                                               "rename them to pole codes with `poles convert --rename`, or delete "
                                               "them in Roboflow, then check again")], advice=None)
     seen: set[str] = set()
