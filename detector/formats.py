@@ -21,7 +21,7 @@ from detector.atomic import write_json
 #: Kind of file -> its format number now. What each holds is listed in docs/commands.md ("Files and their formats").
 FORMATS: dict[str, int] = {
     "evaluation": 2,  # poles evaluate's metrics.json (2: TP/FP/FN/TN under "counts"; 1 had them at the top)
-    "finetune": 1,  # poles finetune's metrics.json
+    "finetune": 2,  # poles finetune's metrics.json (2: replan, the plan after training; the plan's epoch estimate)
     "slam": 1,  # poles slam's metrics.json
     "slam map": 1,  # poles slam's map.json
     "slam comparison": 1,  # poles slam --compare's comparison.json
@@ -35,6 +35,7 @@ FORMATS: dict[str, int] = {
     "demo slam": 1,  # poles demo's slam/summary.json
     "demo speed": 1,  # poles demo's speed/summary.json
     "judgement": 1,  # poles finetune's evaluation/summary.json
+    "pick": 1,  # poles pick's picked.json
     "annotations": 1,  # annotations.json beside the frames poles synth renders (and poles split copies)
 }
 #: The keys every file starts with.

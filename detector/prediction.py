@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 
 from detector.console import show_progress
+from detector.datasets.check import MIN_FRAME_SIDE
 from detector.datasets.io import DATASET, IMAGE_SUFFIXES, DatasetWriter, require_decodable
 from detector.datasets.model import Instance
 from detector.datasets.polygons import mask_to_polygon
@@ -138,23 +139,36 @@ def prelabel(images: Path, out: Path, model: Path | None = None, conf: float | N
             poles_per_frame.append(len(instances))
             yield name, frame, path, instances
 
-    protect = Path(images).resolve()
-    if fmt == "yolov8":
-        with DatasetWriter(out, force=force, protect=(protect,)) as writer:
-            for name, frame, path, instances in labelled():
-                writer.add("train", name, path or _jpeg(frame), instances)
-    else:
-        _write_coco(out, labelled(), force, protect)
+    write_prelabels(out, labelled(), fmt, force, Path(images).resolve())
     return Prelabels(len(poles_per_frame), sum(poles_per_frame), poles_per_frame.count(0), detector.conf,
                      Path(out).resolve())
 
 
-def _jpeg(frame: np.ndarray) -> bytes:
+#: What a pre-labelling writer is handed: each frame's name, pixels, its file (None for a video's) and outlines.
+Labelled = Iterable[tuple[str, np.ndarray, Path | None, list[Instance]]]
+
+
+def write_prelabels(out: Path, labelled: Labelled, fmt: str, force: bool, protect: Path,
+                    beside: Callable[[Path], None] | None = None) -> None:
+    """Write pre-labelled frames as a Roboflow upload (``yolov8`` or ``coco`` layout, all in the train split) into
+    ``out``, atomically; ``beside`` writes more files into the folder before it is moved into place."""
+    if fmt == "yolov8":
+        with DatasetWriter(out, force=force, protect=(protect,)) as writer:
+            for name, frame, path, instances in labelled:
+                writer.add("train", name, path or jpeg_bytes(frame), instances)
+            if beside:
+                beside(writer.tmp)
+    else:
+        _write_coco(out, labelled, force, protect, beside)
+
+
+def jpeg_bytes(frame: np.ndarray) -> bytes:
+    """A frame as JPEG bytes at quality 95 (a video's frames, written into a dataset)."""
     return cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, 95])[1].tobytes()
 
 
-def _write_coco(out: Path, labelled: Iterable[tuple[str, np.ndarray, Path | None, list[Instance]]], force: bool,
-                protect: Path) -> None:
+def _write_coco(out: Path, labelled: Labelled, force: bool, protect: Path,
+                beside: Callable[[Path], None] | None = None) -> None:
     """Roboflow's COCO layout: ``train/`` holding the images (copied from their files when the frames came from a
     folder) and ``_annotations.coco.json`` (pixel polygons)."""
     categories = [{"id": i, "name": code, "supercategory": "poles"} for i, code in enumerate(CLASSES)]
@@ -163,7 +177,7 @@ def _write_coco(out: Path, labelled: Iterable[tuple[str, np.ndarray, Path | None
         (tmp / "train").mkdir()
         for index, (name, frame, path, instances) in enumerate(labelled):
             target = tmp / "train" / name
-            shutil.copyfile(path, target) if path else target.write_bytes(_jpeg(frame))
+            shutil.copyfile(path, target) if path else target.write_bytes(jpeg_bytes(frame))
             h, w = frame.shape[:2]
             images.append({"id": index, "file_name": name, "width": w, "height": h})
             for inst in instances:
@@ -175,6 +189,8 @@ def _write_coco(out: Path, labelled: Iterable[tuple[str, np.ndarray, Path | None
                                     "area": round(float((x1 - x0) * (y1 - y0)), 2)})
         (tmp / "train" / "_annotations.coco.json").write_text(json.dumps(
             {"images": images, "annotations": annotations, "categories": categories}))
+        if beside:
+            beside(tmp)
 
 
 def overlay_video(source: Path, out: Path, model: Path | None = None, conf: float | None = None,
@@ -201,9 +217,13 @@ def overlay_video(source: Path, out: Path, model: Path | None = None, conf: floa
                                                                enabled=progress)):
             if writer is None:
                 size = frame.shape[1::-1]
+                if min(size) < MIN_FRAME_SIDE:
+                    raise ValueError(f"{source}: its frames are {size[0]}x{size[1]}, too small to show a pole (at "
+                                     f"least {MIN_FRAME_SIDE} px a side) - give the camera's full-size frames")
                 writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
                 if not writer.isOpened():
-                    raise OSError(f"{out}: OpenCV cannot write MP4 here")
+                    raise OSError(f"{out}: OpenCV's MP4 writer refused {size[0]}x{size[1]} frames at {fps:g} fps "
+                                  "here - use --images to pre-label the frames instead")
             if frame.shape[1::-1] != size:  # a folder of frames of mixed sizes: the video keeps the first's
                 frame = cv2.resize(frame, size)
             found, measured = front_end.detect_and_measure(frame) if front_end else (detector(frame), [])

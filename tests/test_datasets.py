@@ -337,6 +337,39 @@ def test_coco_rle_is_refused(synth_dataset, tmp_path):
     assert any("RLE" in p.message for p in load_dataset(tmp_path / "coco").errors)
 
 
+def test_coco_images_in_an_images_folder_are_one_kind_of_problem_that_says_where_they_are(synth_dataset, tmp_path):
+    from detector.datasets.model import problem_kind
+
+    _to_coco(synth_dataset, tmp_path / "coco", list(CLASSES))
+    valid = tmp_path / "coco" / "valid"
+    (valid / "images").mkdir()
+    moved = [image.rename(valid / "images" / image.name) for image in sorted(valid.glob("*.jpg"))]
+    errors = load_dataset(tmp_path / "coco").errors
+    assert len(errors) == len(moved) > 1
+    assert len({problem_kind(problem) for problem in errors}) == 1
+    assert f"(it is in {valid / 'images'})" in errors[0].message
+
+
+def test_two_classes_onto_one_code_merge_only_where_rename_names_both(synth_dataset, tmp_path):
+    """COCO categories 1 'bp' and 2 'fence' (gp's poles): --rename fence=bp alone is refused by the categories' own
+    ids, naming the --rename that did it; renaming both merges them, and a note says so."""
+    _to_coco(synth_dataset, tmp_path / "coco", list(CLASSES))
+    assert CLASSES[:2] == ("bp", "gp")
+    for path in (tmp_path / "coco").glob("*/_annotations.coco.json"):
+        coco = json.loads(path.read_text())
+        coco["categories"][2]["name"] = "fence"
+        path.write_text(json.dumps(coco))
+    clashing = load_dataset(tmp_path / "coco", renames={"fence": "bp"}).errors
+    assert any("categories 1 ('bp') and 2 ('fence') both mean bp: your --rename 'fence=bp' puts one onto the other"
+               in p.message and "--rename 'bp=bp' --rename 'fence=bp'" in p.fix for p in clashing), clashing
+    merged = load_dataset(tmp_path / "coco", renames={"bp": "bp", "fence": "bp"})
+    assert not merged.errors
+    assert any("categories 1 ('bp') and 2 ('fence') both read as bp, as --rename asks" in p.message
+               for p in merged.problems)
+    expected = sum(1 for s in load_dataset(synth_dataset).samples for i in s.instances if i.cls in ("bp", "gp"))
+    assert sum(1 for s in merged.samples for i in s.instances if i.cls == "bp") == expected > 0
+
+
 def _store_turned(image: Path) -> np.ndarray:
     """Re-save ``image`` as a phone does: pixels stored a quarter turn back, EXIF orientation 6 to turn them
     upright. Returns the upright pixels as OpenCV now reads them."""

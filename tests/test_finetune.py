@@ -10,6 +10,7 @@ import re
 import shutil
 from pathlib import Path
 
+import cv2
 import pytest
 
 from detector.cli import main
@@ -17,7 +18,8 @@ from detector.datasets.io import SplitCounts, load_dataset
 from detector.evaluation.results import Counts, FrameCounts
 from detector.finetune.blend import BlendScore, frame_errors, frames_against, pick_share
 from detector.finetune.intake import prepare_dataset
-from detector.finetune.budget import (MARGIN, MIN_TRAINING_S, BudgetTooSmall, UnitCosts, plan_job,
+from detector.finetune.budget import (MARGIN, MIN_TRAINING_S, BudgetTooSmall, UnitCosts, machine_load,
+                                     overrun_note, plan_job, replan_after_training,
                                      training_minutes)
 from detector.finetune.pipeline import run_finetune
 from detector.finetune.recipe import BLEND_SHARES, DEFAULT_BLEND_SHARE, FinetuneRecipe
@@ -265,6 +267,65 @@ def test_the_training_cap_leaves_what_the_later_stages_need():
     assert training_minutes(plan, 60.0) == MIN_TRAINING_S["yolo"] / 60
 
 
+def _after_training(plan, seconds_before: float) -> float:
+    """What a job that followed ``plan`` up to the end of its training has spent, when that took ``seconds_before``."""
+    return plan.seconds["start"] + seconds_before
+
+
+@pytest.mark.parametrize("model", ["accurate", "robot"])
+def test_a_late_training_or_a_slow_fine_tune_shrinks_the_judging_after_it(model):
+    """On time and at the planned judging cost the re-plan keeps the plan's frames; a training that ran two minutes
+    late, or a fine-tune that judges five times slower, cuts them, so blend, export and evaluate still fit."""
+    recipe = FinetuneRecipe(model=model, minutes=15)
+    frames = SplitCounts(1400, 200, 400)
+    plan = plan_job(recipe, frames, COSTS, recipe.start.network)
+    before = sum(plan.seconds.values()) - plan.after_training_seconds() - plan.seconds["start"]
+    on_time = replan_after_training(plan, recipe, frames, _after_training(plan, before), COSTS.judge, 1.0)
+    assert (on_time.evaluation_frames, on_time.held_out_frames, on_time.blend_frames) == \
+        (plan.evaluation_frames, plan.held_out_frames, plan.blend_frames)
+    for late, judge in ((120.0, COSTS.judge), (0.0, 5 * COSTS.judge)):
+        spent = _after_training(plan, before + late)
+        replan = replan_after_training(plan, recipe, frames, spent, judge, 1.0)
+        assert replan.evaluation_frames < plan.evaluation_frames
+        assert replan.blend_frames < (plan.blend_frames or frames.valid)
+        assert spent + replan.after_training_seconds() <= 60 * 15
+        assert any(f"each rendered set judged on {replan.evaluation_frames} frames" in cut for cut in replan.cuts)
+
+
+def test_a_machine_that_ran_the_early_stages_slowly_slows_the_export_estimate():
+    plan = plan_job(FinetuneRecipe(minutes=15), SplitCounts(1400, 200, 400), COSTS, "yolo")
+    taken = {name: 3 * plan.seconds[name] for name in ("paint", "augment", "rehearsal")}
+    assert machine_load(plan, taken) == pytest.approx(3.0)
+    assert machine_load(plan, {name: 0.5 * plan.seconds[name] for name in taken}) == 1.0
+    replan = replan_after_training(plan, FinetuneRecipe(minutes=15), SplitCounts(1400, 200, 400), 60.0, COSTS.judge,
+                                   3.0)
+    assert replan.seconds["export"] == pytest.approx(3 * plan.seconds["export"])
+
+
+def test_a_budget_that_buys_less_than_one_pass_says_so_with_the_budget_that_buys_one():
+    frames = SplitCounts(1566, 195, 196)  # the size of a real Roboflow export
+    plan = plan_job(FinetuneRecipe(minutes=5), frames, COSTS, "yolo")
+    warning = plan.short_of_an_epoch()
+    assert warning and f"--minutes {plan.one_epoch_minutes:g} buys a whole pass" in warning
+    enough = plan_job(FinetuneRecipe(minutes=plan.one_epoch_minutes), frames, COSTS, "yolo")
+    assert enough.short_of_an_epoch() is None and enough.seconds["train"] >= enough.epoch_seconds
+    half_a_minute_less = plan_job(FinetuneRecipe(minutes=plan.one_epoch_minutes - 0.5), frames, COSTS, "yolo")
+    assert half_a_minute_less.short_of_an_epoch() is not None
+    fewer = plan.one_epoch_minutes_without_copies
+    assert fewer < plan.one_epoch_minutes and f"--minutes {fewer:g} with --copies 0" in warning
+    assert plan_job(FinetuneRecipe(minutes=fewer, copies=0), frames, COSTS, "yolo").short_of_an_epoch() is None
+    assert plan_job(FinetuneRecipe(minutes=fewer - 0.5, copies=0), frames, COSTS, "yolo").short_of_an_epoch()
+    assert plan_job(FinetuneRecipe(model="robot", minutes=5), frames, COSTS, "crops").short_of_an_epoch() is None
+
+
+def test_a_job_that_ran_late_says_by_how_much_and_which_stage():
+    plan = plan_job(FinetuneRecipe(minutes=4), SplitCounts(10, 1, 3), COSTS, "yolo")
+    kept = {"train": plan.planned("train"), "evaluate": plan.seconds["evaluate"]}
+    assert overrun_note(plan, kept, 10.0) is None
+    late = overrun_note(plan, {**kept, "evaluate": plan.seconds["evaluate"] + 150}, 10.0)
+    assert late.startswith("this fine-tune took") and f"evaluate took {plan.seconds['evaluate'] + 150:.0f} s" in late
+
+
 def test_each_starting_model_brings_its_measured_recipe_and_a_flag_overrides_it():
     robot = FinetuneRecipe(model="robot")
     assert (robot.rendered_share, robot.epoch_cap, robot.rehearsal_frames(88)) == (0.75, 30, 264)
@@ -300,6 +361,105 @@ def test_training_interrupted_after_an_epoch_resumes_from_it(export, tmp_path, m
     assert calls == [False, True]  # the second call resumed the first run
     assert hours[1] < hours[0]  # with what the first left of its budget
     assert result.stages.train.epochs >= 2 and (tmp_path / "run" / "models" / "poles-finetuned.onnx").is_file()
+
+
+@pytest.mark.parametrize("model, training", [("robot", "the crop network's training starts again"),
+                                              ("accurate", "the training resumes from its last epoch")])
+def test_ctrl_c_in_a_fine_tune_says_what_a_rerun_resumes(export, tmp_path, monkeypatch, capsys, model, training):
+    """The robot's crop network retrains on a rerun (it has no epochs to resume), the accurate model resumes: the
+    interrupted command says which, and keeps its folder."""
+    from detector.finetune import pipeline
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(pipeline, "prepare_dataset", interrupted)
+    assert main(["finetune", str(export), "--out", str(tmp_path / "run"), "--model", model]) == 130
+    message = capsys.readouterr().err
+    assert f"the finished stages are kept in {tmp_path / 'run'}" in message and training in message
+
+
+def test_a_square_export_is_warned_about_once_not_again_for_each_copy_the_fine_tune_makes(export, tmp_path,
+                                                                                           monkeypatch, capsys):
+    """The export, the run's copy of it and the augmented copy are all square: the user hears it once."""
+    import cv2
+
+    from detector.finetune import pipeline
+
+    square = Path(shutil.copytree(export, tmp_path / "square"))
+    for image in square.rglob("*.jpg"):
+        cv2.imwrite(str(image), cv2.resize(cv2.imread(str(image)), (480, 480)))
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(pipeline, "_render_rehearsal", interrupted)
+    assert main(["finetune", str(square), "--out", str(tmp_path / "run"), "--model", "robot"]) == 130
+    assert capsys.readouterr().err.count("every image is square") == 1
+    assert (tmp_path / "run" / "augmented" / "data.yaml").is_file()  # the copies were read and checked
+
+
+@pytest.fixture(scope="module")
+def unlabelled(export, tmp_path_factory) -> Path:
+    """The export's frames without their labels: a team's recording."""
+    folder = tmp_path_factory.mktemp("unlabelled") / "recording"
+    folder.mkdir()
+    for image in sorted(export.rglob("*.jpg")):
+        shutil.copy(image, folder / image.name)
+    return folder
+
+
+def test_the_teacher_keeps_only_frames_it_is_sure_of_and_labels_its_sure_poles(unlabelled, tmp_path):
+    from detector.finetune.teacher import FLOOR_CONF, teacher_labels
+    from naoslam.perception.loading import load_detector
+
+    sure = 0.7
+    taught = teacher_labels(unlabelled, tmp_path / "taught", "shipped", sure, seconds=600, progress=False)
+    detector = load_detector("shipped", conf=FLOOR_CONF)
+    expected = {}
+    for image in sorted(unlabelled.iterdir()):
+        found = detector(cv2.imread(str(image)))
+        if all(d.confidence >= sure for d in found):
+            expected[image.name] = len(found)
+    labelled = {sample.image.name: len(sample.instances) for sample in load_dataset(tmp_path / "taught").samples}
+    assert labelled == expected and taught.kept == len(expected) and taught.stride == 1
+    assert taught.unsure == taught.frames - taught.kept > 0 and taught.poles == sum(expected.values())
+    assert taught.pole_free == sum(1 for count in expected.values() if count == 0)
+    assert len(load_dataset(tmp_path / "taught").split("test")) == taught.test == taught.kept // 7
+
+
+def test_the_teacher_labels_every_so_many_frames_to_keep_to_its_seconds(unlabelled, tmp_path):
+    from detector.finetune.teacher import TIMED_FRAMES, teacher_labels
+
+    taught = teacher_labels(unlabelled, tmp_path / "taught", "shipped", 0.7, seconds=0.001, progress=False)
+    assert taught.stride == taught.frames  # no time left after the timed frames: none of the rest
+    assert taught.kept + taught.unsure == TIMED_FRAMES
+
+
+def test_unlabelled_frames_alone_fine_tune_the_robot_model_and_the_report_says_what_they_added(unlabelled, tmp_path,
+                                                                                               export):
+    recipe = FinetuneRecipe(model="robot", minutes=2, epochs=2, copies=1, evaluation_frames=10,
+                            unlabelled=str(unlabelled))
+    stages = run_finetune(None, tmp_path / "run", recipe).stages
+    assert stages.teacher is not None and stages.teacher.kept > 2
+    assert stages.dataset.frames.train + stages.dataset.frames.valid + stages.dataset.frames.test == \
+        stages.teacher.kept
+    assert stages.plan.seconds["teacher"] > 0 and stages.export.fp32.is_file()
+    assert "Unlabelled frames" in (tmp_path / "run" / "report.html").read_text()
+    both = prepare_dataset(export, tmp_path / "both", {}, 0, more_train=tmp_path / "run" / "teacher")
+    assert both.frames.train == len(load_dataset(export).split("train")) + stages.teacher.kept
+
+
+@pytest.mark.parametrize("arguments, words", [
+    (["--unlabelled", "FRAMES"], "--unlabelled teaches the robot model"),
+    (["--model", "robot"], "nothing to fine-tune on"),
+])
+def test_unlabelled_frames_are_refused_where_they_cannot_teach(unlabelled, tmp_path, capsys, arguments, words):
+    arguments = [str(unlabelled) if word == "FRAMES" else word for word in arguments]
+    assert main(["finetune", "--out", str(tmp_path / "run"), *arguments]) == 2
+    error = capsys.readouterr().err
+    assert words in error and len(error.strip().splitlines()) == 1, error
+    assert not (tmp_path / "run").exists()
 
 
 def _magenta_frames(folder: Path) -> int:

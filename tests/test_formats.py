@@ -46,6 +46,7 @@ def _records() -> dict[str, object]:
     from detector.evaluation.results import Evaluation
     from detector.finetune.judge import JudgeRow
     from detector.finetune.results import FinetuneResult
+    from detector.picking import PickResult
     from detector.robot_training import RobotTraining
     from detector.slam.comparison import BackendRow
     from detector.stages import StageRecord
@@ -68,6 +69,7 @@ def _records() -> dict[str, object]:
         "export report": ExportReport, "stages": [field.name for field in fields(StageRecord) if field.name != "ran"],
         "robot training": RobotTraining, "augment": AugmentSummary, "paint": TeamPaint,
         "demo evaluation": EvaluatedFrontEnd, "demo slam": DemoSlam, "demo speed": DemoSpeed, "judgement": JudgeRow,
+        "pick": PickResult,
         "annotations": ["classes", "generator", "fields", "images", *sorted(ANNOTATION_FIELDS)],
     }
 

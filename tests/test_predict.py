@@ -148,6 +148,18 @@ def test_overlay_video_has_every_frame_at_the_input_size(frames, tmp_path):
     assert int(cv2.VideoCapture(str(again)).get(cv2.CAP_PROP_FRAME_COUNT)) == count
 
 
+def test_an_overlay_video_of_frames_too_small_to_show_a_pole_is_refused_for_its_frames(tmp_path, capsys):
+    frames = tmp_path / "tiny"
+    frames.mkdir()
+    for index in range(3):
+        cv2.imwrite(str(frames / f"{index:03d}.png"), np.full((1, 1, 3), 128, np.uint8))
+    assert main(["predict", "--video", str(frames), "--out", str(tmp_path / "out.mp4"),
+                 "--model", "shipped-robot"]) == 2
+    message = capsys.readouterr().err
+    assert "its frames are 1x1, too small to show a pole (at least 16 px a side)" in message, message
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["tiny"]
+
+
 def test_prelabel_and_video_on_real_frames(real_poles, tmp_path):
     images = real_poles / "test" / "images"
     assert main(["predict", "--images", str(images), "--out", str(tmp_path / "pre")]) == 0

@@ -203,6 +203,23 @@ def test_a_recording_of_greyscale_frames_is_refused_it_holds_no_colour_to_name_a
     assert not (tmp_path / "out").exists()
 
 
+def test_a_recording_says_which_frames_no_front_end_can_see_and_refuses_one_of_only_those(tmp_path, capsys):
+    """One greyscale frame and one of 15x15 among three: each named with its count; the third is still measured.
+    A recording of 15x15 frames alone is refused, not mapped as an empty field."""
+    frames, odometry = _recording(tmp_path)
+    cv2.imwrite(str(frames / "0.0.jpg"), np.full((240, 320, 3), 90, np.uint8))
+    cv2.imwrite(str(frames / "0.5.jpg"), np.full((15, 15, 3), (60, 120, 40), np.uint8))
+    sequence = recorded_sequence(frames, odometry, COLOUR_FILTER, 0.3)
+    out = capsys.readouterr().out
+    assert "1 of 3 frames are greyscale (0.0.jpg first)" in out
+    assert "1 of 3 frames are smaller than 16 px a side (0.5.jpg first)" in out
+    assert sum(e.measurements is not None for e in sequence.events) == 3
+    cv2.imwrite(str(frames / "0.0.jpg"), np.full((15, 15, 3), (60, 120, 40), np.uint8))
+    cv2.imwrite(str(frames / "1.0.jpg"), np.full((15, 15, 3), (60, 120, 40), np.uint8))
+    with pytest.raises(ValueError, match="every frame is smaller than 16 px a side .* record the camera's full"):
+        recorded_sequence(frames, odometry, COLOUR_FILTER, 0.3)
+
+
 FIELD_MAP = "class,x,y\nbp,-4.675,3.175\ngp,0,3.175\nyp,4.675,3.175\npb,-4.675,-3.175\npg,0,-3.175\npy,4.675,-3.175\n"
 
 

@@ -1,5 +1,5 @@
 """The commands that run a model on frames: ``evaluate`` scores it on labelled ones, ``predict`` pre-labels new ones
-or draws its view on a video."""
+or draws its view on a video, ``pick`` chooses the frames of a recording worth labelling."""
 from __future__ import annotations
 
 import argparse
@@ -10,7 +10,7 @@ from naoslam.shipped import DEFAULT_CONF
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
-    """Add the `evaluate` and `predict` commands to ``sub`` (``run``: the function that runs it)."""
+    """Add the `evaluate`, `predict` and `pick` commands to ``sub`` (``run``: the function that runs it)."""
     evaluate = sub.add_parser("evaluate", help="precision, recall and mask IoU per image on held-out frames")
     evaluate.add_argument("--model", action="append",
                           help="a .pt checkpoint (or its `poles train` run folder), an .onnx model, `shipped`, "
@@ -47,6 +47,20 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     predict.add_argument("--force", action="store_true")
     predict.set_defaults(run=_predict)
 
+    pick = sub.add_parser("pick", help="the frames of a recording worth labelling: where the robot front end and the "
+                                       "accurate model disagree, pre-labelled for Roboflow")
+    pick.add_argument("recording", type=Path, help="folder of frames (subfolders too) or a video")
+    pick.add_argument("--count", type=int, default=50, help="frames to pick (default 50)")
+    pick.add_argument("--out", type=Path, required=True, help="dataset folder for the picked frames, their "
+                      "pre-labels, picked.json and picked.png (why each was picked)")
+    pick.add_argument("--teacher", default="shipped", help="the accurate model that pre-labels them: `shipped` or "
+                      "an ONNX model, e.g. your fine-tune (default: shipped)")
+    pick.add_argument("--robot", default="shipped-robot", help="the robot front end to find the weak spots of: "
+                      "`shipped-robot` or a robot ONNX model (default: shipped-robot)")
+    pick.add_argument("--format", choices=("yolov8", "coco"), default="yolov8", help="pre-annotation layout")
+    pick.add_argument("--force", action="store_true")
+    pick.set_defaults(run=_pick)
+
 
 def _evaluate(args: argparse.Namespace) -> int:
     from detector.datasets.intake import open_dataset
@@ -77,15 +91,21 @@ def _evaluate(args: argparse.Namespace) -> int:
 
 
 def _say_poses(dataset, split: str) -> None:
-    """A note when ``--pose`` finds no camera pose, or not every frame's: those frames are searched whole."""
-    from detector.datasets.truth import load_camera_poses
+    """A note when ``--pose`` finds no camera pose, or not every frame's (naming the first frame whose recorded
+    pose no front end can measure on, and why): those frames are searched whole."""
+    from detector.datasets.truth import camera_pose_problems, load_camera_poses
 
     frames = {sample.image.name for sample in dataset.split(split)}
-    posed = len(frames & set(load_camera_poses(dataset)))
+    problems = {name: problem for name, problem in sorted(camera_pose_problems(dataset).items()) if name in frames}
+    posed = len(frames & set(load_camera_poses(dataset))) + len(problems)
     if posed < len(frames):
         which = "none" if not posed else f"{posed} of {len(frames)}"
         print(f"note: --pose: {which} of the {split} frames record their camera pose (annotations.json, as `poles "
               "synth` writes it); the others are searched whole, as without --pose")
+    if problems:
+        name, problem = next(iter(problems.items()))
+        print(f"note: --pose: {len(problems)} of the {split} frames record a pose no front end can measure on and "
+              f"are searched whole ({name}: {problem}) - correct their camera entries in annotations.json")
 
 
 def _column_labels(models: list[str], names: list[str]) -> list[str]:
@@ -110,4 +130,15 @@ def _predict(args: argparse.Namespace) -> int:
         video = overlay_video(args.video, args.out, args.model, args.conf, args.force, input_width=args.imgsz)
         print(f"wrote {video.frames} frames to {video.video} and the contact sheet {video.sheet}"
               + ("" if video.ranges else " (no ranges drawn: the model has no calibration for this input width)"))
+    return 0
+
+
+def _pick(args: argparse.Namespace) -> int:
+    from detector.picking import pick_frames
+
+    result = pick_frames(args.recording, args.out, args.count, args.teacher, args.robot, args.format, args.force)
+    print(f"compared {result.frames} frames: the robot front end (threshold {result.robot_conf:.2f}) and the "
+          f"accurate model ({result.accurate_conf:.2f}) disagree on {result.disagreeing}; picked {len(result.picked)} "
+          f"spread over the recording into {result.out} with the accurate model's pre-labels - upload it to Roboflow, "
+          f"correct, export; why each was picked: {result.sheet}")
     return 0

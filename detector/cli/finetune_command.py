@@ -15,7 +15,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     """Add the `finetune` command to ``sub`` (``run``: the function that runs it)."""
     finetune = sub.add_parser("finetune", help="fine-tune the shipped model on your own annotated export, "
                                                "blend, export, and report what changed (resumable)")
-    finetune.add_argument("export", type=Path, help="your annotated export: Roboflow YOLOv8 or COCO folder (only read)")
+    finetune.add_argument("export", type=Path, nargs="?",
+                          help="your annotated export: Roboflow YOLOv8 or COCO folder (only read); may be left out "
+                               "with --unlabelled")
     finetune.add_argument("--out", type=Path, required=True,
                           help="run folder: models/poles-finetuned.onnx (+ -int8), report.html, metrics.json; "
                                "give an earlier run's folder to resume it")
@@ -53,6 +55,12 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     finetune.add_argument("--evaluation-frames", type=whole_number(10), default=DEFAULTS.evaluation_frames,
                           help="frames in each rendered set the models are judged on (default "
                                f"{DEFAULTS.evaluation_frames})")
+    finetune.add_argument("--unlabelled", type=Path,
+                          help="with --model robot: a folder of your unlabelled frames (or a video) that the accurate "
+                               "model labels where it is sure; the robot model trains on them beside the export")
+    finetune.add_argument("--teacher", default=DEFAULTS.teacher,
+                          help="with --unlabelled, the accurate model that labels them: `shipped` (default, sure at "
+                               "its 95 %% precision threshold) or your fine-tune's ONNX (sure at its own threshold)")
     finetune.add_argument("--seed", type=whole_number(0), default=DEFAULTS.seed)
     finetune.set_defaults(run=_finetune)
 
@@ -66,7 +74,8 @@ def _finetune(args: argparse.Namespace) -> int:
                             rehearsal_share=args.rehearsal_share,
                             backgrounds=str(args.backgrounds) if args.backgrounds else None, freeze=args.freeze,
                             lr0=args.lr0, imgsz=args.imgsz, seed=args.seed,
-                            evaluation_frames=args.evaluation_frames)
+                            evaluation_frames=args.evaluation_frames,
+                            unlabelled=str(args.unlabelled) if args.unlabelled else None, teacher=args.teacher)
     result = run_finetune(args.export, args.out, recipe, parse_renames(args.rename))
     stages = result.stages
     for line in changes(stages.evaluate):

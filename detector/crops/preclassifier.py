@@ -24,7 +24,7 @@ from torch import nn
 from detector.crops.network import Normalise, PoleCropNet
 from detector.crops.samples import NO_POLE, CropSet
 from detector.crops.settings import CropTrainSettings
-from detector.crops.train import augment, tensors
+from detector.crops.train import augment, one_cycle, tensors
 from naoslam.perception.preclassifier import PRECLASSIFIER_INPUT
 
 #: Share of the valid pole crops the crop network names right that the preclassifier's threshold keeps.
@@ -91,8 +91,7 @@ def train_preclassifier(train: CropSet, valid: CropSet, valid_full: CropSet, cro
     images, classes, boxes = tensors(train)
     targets = (classes != NO_POLE).float()
     optimiser = torch.optim.AdamW(network.parameters(), lr=settings.learning_rate, weight_decay=settings.weight_decay)
-    steps = settings.epochs * math.ceil(len(images) / settings.batch)
-    schedule = torch.optim.lr_scheduler.OneCycleLR(optimiser, settings.learning_rate, total_steps=steps, pct_start=0.1)
+    schedule = one_cycle(optimiser, settings.learning_rate, settings.epochs * math.ceil(len(images) / settings.batch))
     generator = torch.Generator().manual_seed(settings.seed)
     began = time.perf_counter()
     for epoch in range(1, settings.epochs + 1):

@@ -132,6 +132,18 @@ def validate(network: PoleCropNet, crops: CropSet, conf: float = 0.5) -> tuple[f
     return recall, false_rate, float(iou[poles].mean()) if poles.any() else 0.0
 
 
+#: The fewest steps a one-cycle schedule is laid over: fewer leave its warm-up without a step (torch divides by
+#: zero), as a handful of frames trained for an epoch or two would.
+MIN_SCHEDULE_STEPS = 20
+
+
+def one_cycle(optimiser: torch.optim.Optimizer, rate: float, steps: int) -> torch.optim.lr_scheduler.OneCycleLR:
+    """The learning-rate schedule of every crop training: a tenth warming up to ``rate``, then annealing, over
+    ``steps`` (at least ``MIN_SCHEDULE_STEPS``: a shorter training stops early in its schedule)."""
+    return torch.optim.lr_scheduler.OneCycleLR(optimiser, rate, total_steps=max(steps, MIN_SCHEDULE_STEPS),
+                                               pct_start=0.1)
+
+
 def train_crop_network(train: CropSet, valid: CropSet, settings: CropTrainSettings = CropTrainSettings(),
                        start: PoleCropNet | None = None, log=print) -> tuple[PoleCropNet, list[EpochResult]]:
     """Train (or go on training ``start``) on ``train``; the best epoch on ``valid`` (or the last, as ``settings``
@@ -141,9 +153,7 @@ def train_crop_network(train: CropSet, valid: CropSet, settings: CropTrainSettin
     network = start if start is not None else PoleCropNet()
     images, classes, boxes = tensors(train)
     optimiser = torch.optim.AdamW(network.parameters(), lr=settings.learning_rate, weight_decay=settings.weight_decay)
-    steps = settings.epochs * math.ceil(len(images) / settings.batch)
-    schedule = torch.optim.lr_scheduler.OneCycleLR(optimiser, settings.learning_rate, total_steps=steps,
-                                                   pct_start=0.1)
+    schedule = one_cycle(optimiser, settings.learning_rate, settings.epochs * math.ceil(len(images) / settings.batch))
     generator = torch.Generator().manual_seed(settings.seed)
     best_state, best_score, history, started = None, -math.inf, [], time.perf_counter()
     for epoch in range(1, settings.epochs + 1):

@@ -78,7 +78,7 @@ def _read_coco_split(split: str, json_path: Path, problems: list[Problem], renam
         if image_path.suffix.lower() not in IMAGE_SUFFIXES or not image_path.is_file():
             elsewhere = _found_elsewhere(json_path, image["file_name"])
             error(f"image {image['file_name']!r} is listed but missing beside it"
-                  + (f" (it is at {elsewhere})" if elsewhere else ""), f"put it beside {json_path.name}"
+                  + (f" (it is in {elsewhere.parent})" if elsewhere else ""), f"put it beside {json_path.name}"
                   + (" (Roboflow's COCO export keeps each split's images beside its JSON)" if elsewhere else ""))
             continue
         size = _image_size(image, image_path, json_path, problems)
@@ -123,7 +123,7 @@ def _categories(raw: list, json_path: Path, problems: list[Problem],
         problems.append(Problem("error", json_path, None, "a category has no `id` or `name`", "re-export the dataset"))
     placeholder = [c for c in used if c.get("supercategory") == "none" and c["id"] == 0 and len(used) > 1]
     named = [c for c in used if c not in placeholder]
-    codes, found = class_codes([c["name"] for c in named], json_path, renames)
+    codes, found = class_codes([c["name"] for c in named], json_path, renames, [c["id"] for c in named], "categories")
     problems += found
     return named, codes
 

@@ -9,14 +9,32 @@ allowed). Ultralytics' ``labels.cache`` files land there, never in the user's da
 from __future__ import annotations
 
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 
 from detector.datasets.check import check_dataset, refusal_advice
 from detector.datasets.io import DatasetWriter
-from detector.datasets.model import Dataset, DatasetError, Problem, grouped_problems
+from detector.datasets.model import Dataset, DatasetError, Problem, grouped_problems, problem_kind
 
 #: Splits Ultralytics needs to train (it validates every epoch).
 TRAINING_SPLITS = ("train", "valid")
+
+
+#: The kinds of warning said so far inside ``each_warning_once`` (None outside it: every call says its own).
+_said_kinds: ContextVar[set | None] = ContextVar("said_kinds", default=None)
+
+
+@contextmanager
+def each_warning_once() -> Iterator[None]:
+    """Within it, each kind of dataset warning is said once: a command that reads the user's export and then its
+    own copies of it (a fine-tune) does not repeat the export's warnings for each copy."""
+    token = _said_kinds.set(set())
+    try:
+        yield
+    finally:
+        _said_kinds.reset(token)
 
 
 def open_dataset(path: str | Path, renames: dict[str, str] | None = None, progress: bool = True) -> Dataset:
@@ -25,7 +43,12 @@ def open_dataset(path: str | Path, renames: dict[str, str] | None = None, progre
     report = check_dataset(path, progress=progress, renames=renames)
     if report.errors:
         raise DatasetError(report.errors, refusal_advice(report.errors))
+    said = _said_kinds.get()
     for group in grouped_problems([p for p in report.problems if p.severity == "warning"]):
+        if said is not None and problem_kind(group[0]) in said:
+            continue
+        if said is not None:
+            said.add(problem_kind(group[0]))
         more = f" (and {len(group) - 1} more like it)" if len(group) > 1 else ""
         print(f"{group[0]}{more}", file=sys.stderr)
     return report.dataset

@@ -47,23 +47,44 @@ def parse_renames(pairs: list[str] | None) -> dict[str, str]:
     return renames
 
 
-def class_codes(raw_names: list, source: Path, renames: dict[str, str] | None = None) -> tuple[tuple[str | None, ...], list[Problem]]:
+def class_codes(raw_names: list, source: Path, renames: dict[str, str] | None = None, ids: list | None = None,
+                nouns: str = "classes") -> tuple[tuple[str | None, ...], list[Problem]]:
     """The canonical code of each declared class (None where it names no landmark) and the problems with them.
 
-    Two classes that mean the same landmark are refused: their instances would silently merge. A class that names
-    no landmark is judged by ``unknown_class_problems`` once the outlines are read.
+    Two classes that read as one landmark merge only where the user's ``renames`` name both of them (a deliberate
+    merge, said in a note); otherwise they are refused, as their instances would silently merge. ``ids`` and
+    ``nouns`` name the classes as their file does (a COCO category's own id, not its index). A class that names no
+    landmark is judged by ``unknown_class_problems`` once the outlines are read.
     """
     renames = renames or {}
     codes = tuple(canonical_class(renames.get(str(n), n)) for n in raw_names)
     problems = []
     first: dict[str, int] = {}
+
+    def label(index: int) -> str:
+        return f"{ids[index] if ids is not None else index} ({raw_names[index]!r})"
+
     for index, (given, code) in enumerate(zip(raw_names, codes)):
-        if code in first:
-            problems.append(Problem("error", source, None, f"classes {first[code]} ({raw_names[first[code]]!r}) and "
-                                    f"{index} ({given!r}) both mean {code}: their poles would merge",
-                                    "give each class its own name in the export"))
-        elif code is not None:
+        if code is None:
+            continue
+        if code not in first:
             first[code] = index
+            continue
+        earlier = raw_names[first[code]]
+        pair = f"{nouns} {label(first[code])} and {label(index)}"
+        renamed = [str(name) for name in (earlier, given) if str(name) in renames]
+        if len(renamed) == 2:
+            problems.append(Problem("note", source, None, f"{pair} both read as {code}, as --rename asks: their poles "
+                                    "are one landmark class", "nothing to do"))
+        elif renamed:
+            problems.append(Problem("error", source, None, f"{pair} both mean {code}: your --rename "
+                                    f"'{renamed[0]}={code}' puts one onto the other and their poles would merge",
+                                    f"rename '{renamed[0]}' to another code, or merge the two on purpose with --rename "
+                                    f"'{earlier}={code}' --rename '{given}={code}'"))
+        else:
+            problems.append(Problem("error", source, None, f"{pair} both mean {code}: their poles would merge",
+                                    f"give each class its own name in the export, or merge the two on purpose with "
+                                    f"--rename '{earlier}={code}' --rename '{given}={code}'"))
     return codes, problems
 
 

@@ -71,18 +71,31 @@ def _is_distance(value) -> bool:
 
 def load_camera_poses(dataset: Dataset) -> dict[str, CameraPose]:
     """The camera's pose (height, pitch, roll) of each image whose ``annotations.json`` entry records one (``poles
-    synth`` writes them), by file name; empty without such a file."""
+    synth`` writes them), by file name; empty without such a file. A pose with no floor under it is left out
+    (``camera_pose_problems`` says why)."""
+    return {name: pose for name, pose in _recorded_poses(dataset).items() if isinstance(pose, CameraPose)}
+
+
+def camera_pose_problems(dataset: Dataset) -> dict[str, str]:
+    """Why each recorded camera pose that no front end can measure on is left out, by file name."""
+    return {name: pose for name, pose in _recorded_poses(dataset).items() if isinstance(pose, str)}
+
+
+def _recorded_poses(dataset: Dataset) -> dict[str, CameraPose | str]:
+    """Each image's recorded camera pose, or why it cannot be used; images that record none are absent."""
     images = _our_annotations(dataset.root / "annotations.json") or {}
-    poses = {}
+    poses: dict[str, CameraPose | str] = {}
     for name, entry in images.items():
         camera = entry.get("camera") if isinstance(entry, dict) else None
+        if camera is None:
+            continue
         try:
             pose = CameraPose(z=float(camera["height_m"]), pitch=float(camera["pitch_rad"]),
                               roll=float(camera["roll_rad"]))
         except (TypeError, KeyError, ValueError):
+            poses[name] = "its camera entry needs the numbers height_m, pitch_rad and roll_rad"
             continue
-        if ground_plane_problem(pose) is None:
-            poses[name] = pose
+        poses[name] = ground_plane_problem(pose) or pose
     return poses
 
 

@@ -24,6 +24,9 @@ MARGIN = 0.08
 #: At most these shares of the minutes go to preparing (augmenting, rendering the rehearsal) and to judging
 #: (choosing the blend, judging the models); training gets the rest.
 PREPARING_SHARE, JUDGING_SHARE = 0.3, 0.25
+#: At most this share of the minutes goes to the teacher labelling unlabelled frames (``--unlabelled``), before the
+#: plan fits the rest to what is left.
+TEACHING_SHARE = 0.25
 #: The least work that still makes a fine-tune: judged frames per rendered set, team frames judged and scored per
 #: blend, rehearsal frames, and seconds of training (the accurate model, the robot's crop network).
 MIN_EVALUATION_FRAMES, MIN_TEAM_FRAMES, MIN_REHEARSAL_FRAMES = 10, 10, 20
@@ -38,6 +41,13 @@ EXPORT_S = {"yolo": 30.0, "crops": 3.0}
 CROP_PASS = 1.5
 #: Fine-tuned models judged beside the shipped one (the fine-tune and the chosen blend), and rendered sets.
 JUDGED_MODELS, RENDERED_SETS = 3, 2
+#: Seconds one training frame of the accurate model costs (Ultralytics' loader, forward and backward) per second
+#: judging one frame costs, both at the training size: 0.45 s against 0.16 s measured on a two-core EPYC.
+TRAINING_PER_JUDGED_FRAME = 3.0
+#: The largest slowdown of the stages after training that the stages before it can be taken to show.
+MAX_LOAD = 10.0
+#: Each stage as ``stages.json`` names it, and the parts of the plan that estimate it.
+PLANNED_PARTS = {"dataset": ("start", "dataset"), "train": ("training start", "train")}
 
 
 class BudgetTooSmall(ValueError):
@@ -73,10 +83,33 @@ class JobPlan(JsonRecord):
     blend_frames: int | None
     seconds: dict[str, float]
     cuts: tuple[str, ...] = ()
+    #: The accurate model's estimated seconds for one pass over its training frames, and the least minutes whose
+    #: plan trains a whole pass, with the recipe's copies and with none (None for the crop network, which trains
+    #: many epochs a minute, and when the training's share already buys a pass).
+    epoch_seconds: float | None = None
+    one_epoch_minutes: float | None = None
+    one_epoch_minutes_without_copies: float | None = None
 
     def after_training_seconds(self) -> float:
         """What the stages after training are expected to take."""
         return sum(self.seconds[name] for name in ("blend", "export", "evaluate"))
+
+    def short_of_an_epoch(self) -> str | None:
+        """A warning, in words, when the training's share buys less than one pass over its frames; else None."""
+        if self.epoch_seconds is None or self.seconds["train"] >= self.epoch_seconds:
+            return None
+        share = self.seconds["train"] / self.epoch_seconds
+        fewer = self.one_epoch_minutes_without_copies
+        cheaper = fewer is not None and fewer < self.one_epoch_minutes
+        without = f", --minutes {fewer:g} with --copies 0" if cheaper else ""
+        return (f"the training gets {self.seconds['train'] / 60:.1f} minutes, about {share:.0%} of one pass over its "
+                f"frames (one pass takes about {self.epoch_seconds / 60:.1f} minutes here): it will learn little - "
+                f"--minutes {self.one_epoch_minutes:g} buys a whole pass on this machine with the augmented copies "
+                f"that budget plans{without}")
+
+    def planned(self, stage: str) -> float:
+        """The seconds this plan gives ``stage`` (a name in ``stages.json``)."""
+        return sum(self.seconds.get(part, 0.0) for part in PLANNED_PARTS.get(stage, (stage,)))
 
 
 def training_minutes(plan: JobPlan, spent_minutes: float) -> float:
@@ -97,9 +130,15 @@ def measure_costs(samples: list[Sample], render: Callable[[], object], judge: Ca
     labelled = next((sample for sample in samples if sample.instances), samples[0])
     augment_s = _timed(lambda: augment(labelled))
     render_s = _timed(render)
+    return UnitCosts(decode, augment_s, render_s, judging_seconds(judge, frames) + decode, workers)
+
+
+def judging_seconds(judge: Callable[[np.ndarray], object], frames: list[np.ndarray]) -> float:
+    """Seconds ``judge`` takes a frame: one untimed call that loads it, then the mean over up to three frames (a
+    model that finds many weak poles is slow on every frame, not on the fastest)."""
     judge(frames[0])
-    judge_s = min(_timed(lambda: judge(frame)) for frame in frames[:2])
-    return UnitCosts(decode, augment_s, render_s, judge_s + decode, workers)
+    timed = frames[1:4] or frames[:1]
+    return sum(_timed(lambda: judge(frame)) for frame in timed) / len(timed)
 
 
 def _timed(work: Callable[[], object]) -> float:
@@ -119,11 +158,13 @@ class _Work:
     blend: int
 
 
-def plan_job(recipe: FinetuneRecipe, frames: SplitCounts, costs: UnitCosts, network: str) -> JobPlan:
-    """Fit the fine-tune of an export with ``frames`` (after the valid split is made) into ``recipe.minutes``:
+def plan_job(recipe: FinetuneRecipe, frames: SplitCounts, costs: UnitCosts, network: str,
+             taught_s: float = 0.0) -> JobPlan:
+    """Fit the fine-tune of an export with ``frames`` (after the valid split is made) into ``recipe.minutes``, less
+    the ``taught_s`` the teacher already took labelling unlabelled frames (kept in the plan as ``teacher``):
     judging first cut to ``JUDGING_SHARE`` of them, then preparing to ``PREPARING_SHARE``, training the rest.
     ``BudgetTooSmall`` names the least minutes that work here when even the least work does not fit."""
-    budget = 60 * recipe.minutes * (1 - MARGIN)
+    budget = 60 * recipe.minutes * (1 - MARGIN) - taught_s
     held_out_all = frames.test or frames.valid
     wanted = _Work(recipe.copies, recipe.rehearsal_frames(frames.train * (1 + recipe.copies)),
                    recipe.evaluation_frames, held_out_all, frames.valid)
@@ -132,11 +173,31 @@ def plan_job(recipe: FinetuneRecipe, frames: SplitCounts, costs: UnitCosts, netw
                   min(MIN_TEAM_FRAMES, frames.valid))
     needed = sum(_seconds(least, frames, costs, network, recipe).values()) + MIN_TRAINING_S[network]
     if needed > budget:
-        smallest = math.ceil(2 * needed / 60 / (1 - MARGIN)) / 2
+        smallest = math.ceil(2 * (needed + taught_s) / 60 / (1 - MARGIN)) / 2
         raise BudgetTooSmall(f"--minutes {recipe.minutes:g} is less than this fine-tune needs on this machine: "
                              f"at least {smallest:g} minutes for {frames.train + frames.valid + frames.test:,} frames "
                              f"(the least checking, rendering, training and judging take {needed / 60:.1f}) - give "
                              f"--minutes {smallest:g} or more")
+    work, seconds = _fitted(wanted, least, frames, costs, network, recipe, budget)
+    if taught_s:
+        seconds = {"teacher": round(taught_s, 1), **seconds}
+    epoch = _epoch_seconds(work, frames, costs) if network == "yolo" else None
+    one_epoch = without_copies = None
+    if epoch is not None and seconds["train"] < epoch:
+        one_epoch = _minutes_for_one_epoch(wanted, least, frames, costs, recipe)
+        no_copies = replace(recipe, copies=0)
+        without_copies = _minutes_for_one_epoch(
+            replace(wanted, copies=0, rehearsal=no_copies.rehearsal_frames(frames.train)), least, frames, costs,
+            no_copies)
+    return JobPlan(recipe.minutes, network, costs, work.copies, work.rehearsal, work.evaluation,
+                   None if work.held_out >= held_out_all else work.held_out,
+                   None if work.blend >= frames.valid else work.blend, seconds, _cuts(wanted, work, frames, recipe),
+                   epoch, one_epoch, without_copies)
+
+
+def _fitted(wanted: _Work, least: _Work, frames: SplitCounts, costs: UnitCosts, network: str,
+            recipe: FinetuneRecipe, budget: float) -> tuple[_Work, dict[str, float]]:
+    """The work fitted to ``budget`` seconds and each stage's seconds, ``train`` the seconds left for training."""
     work = _fit_judging(wanted, least, frames, costs, network, recipe, JUDGING_SHARE * budget)
     work = _fit_preparing(work, least, frames, costs, network, recipe, PREPARING_SHARE * budget)
     seconds = _seconds(work, frames, costs, network, recipe)
@@ -144,9 +205,29 @@ def plan_job(recipe: FinetuneRecipe, frames: SplitCounts, costs: UnitCosts, netw
         work = least
         seconds = _seconds(work, frames, costs, network, recipe)
     seconds["train"] = round(budget - sum(seconds.values()), 1)
-    return JobPlan(recipe.minutes, network, costs, work.copies, work.rehearsal, work.evaluation,
-                   None if work.held_out >= held_out_all else work.held_out,
-                   None if work.blend >= frames.valid else work.blend, seconds, _cuts(wanted, work, frames, recipe))
+    return work, seconds
+
+
+def _epoch_seconds(work: _Work, frames: SplitCounts, costs: UnitCosts) -> float:
+    """The accurate model's estimated seconds for one pass over ``work``'s training frames."""
+    trained = frames.train * (1 + work.copies) + work.rehearsal
+    return round(trained * TRAINING_PER_JUDGED_FRAME * costs.judge, 1)
+
+
+def _minutes_for_one_epoch(wanted: _Work, least: _Work, frames: SplitCounts, costs: UnitCosts,
+                           recipe: FinetuneRecipe) -> float:
+    """The least ``--minutes`` (in half minutes) whose plan trains the accurate model for one whole pass."""
+    def enough(half_minutes: int) -> bool:
+        work, seconds = _fitted(wanted, least, frames, costs, "yolo", recipe, 60 * half_minutes / 2 * (1 - MARGIN))
+        return seconds["train"] >= _epoch_seconds(work, frames, costs)
+
+    low, high = math.ceil(2 * recipe.minutes), math.ceil(2 * recipe.minutes) + 1
+    while not enough(high):
+        low, high = high, 2 * high
+    while high - low > 1:
+        middle = (low + high) // 2
+        low, high = (low, middle) if enough(middle) else (middle, high)
+    return high / 2
 
 
 def _fit_judging(work: _Work, least: _Work, frames: SplitCounts, costs: UnitCosts, network: str,
@@ -179,8 +260,10 @@ def _fit_preparing(work: _Work, least: _Work, frames: SplitCounts, costs: UnitCo
     return work
 
 
-def _cuts(wanted: _Work, work: _Work, frames: SplitCounts, recipe: FinetuneRecipe) -> tuple[str, ...]:
-    """What the plan does less of than the recipe asks, each in words."""
+def _cuts(wanted: _Work, work: _Work, frames: SplitCounts, recipe: FinetuneRecipe,
+          after_training: bool = False) -> tuple[str, ...]:
+    """What the plan does less of than the recipe asks, each in words (``after_training``: the re-plan's, which
+    cannot change the frames the training validated on)."""
     minutes = f"the {recipe.minutes:g} minutes on this machine"
     cuts = []
     if work.copies < wanted.copies:
@@ -195,8 +278,8 @@ def _cuts(wanted: _Work, work: _Work, frames: SplitCounts, recipe: FinetuneRecip
     if work.held_out < wanted.held_out:
         cuts.append(f"the models judged on {work.held_out} of your {wanted.held_out} held-out frames")
     if work.blend < wanted.blend:
-        cuts.append(f"the training validated and each blend scored on {work.blend} of your {wanted.blend} valid "
-                    "frames")
+        scored = "each blend scored" if after_training else "the training validated and each blend scored"
+        cuts.append(f"{scored} on {work.blend} of your {wanted.blend} valid frames")
     return tuple(cuts)
 
 
@@ -220,6 +303,59 @@ def _seconds(work: _Work, frames: SplitCounts, costs: UnitCosts, network: str,
             "blend": len(BLEND_SHARES) * work.blend * costs.judge,
             "export": EXPORT_S[network],
             "evaluate": RENDERED_SETS * work.evaluation * costs.render / parallel + judged * costs.judge}
+
+
+def machine_load(plan: JobPlan, taken: dict[str, float]) -> float:
+    """How much slower than planned this machine ran the stages before training whose work was timed at the start
+    (painting, augmenting, rendering): 1 where they kept to the plan or took too little to tell, at most
+    ``MAX_LOAD``."""
+    names = ("paint", "augment", "rehearsal")
+    planned = sum(plan.seconds[name] for name in names)
+    if planned < 5.0:
+        return 1.0
+    return min(MAX_LOAD, max(1.0, sum(taken.get(name, 0.0) for name in names) / planned))
+
+
+def replan_after_training(plan: JobPlan, recipe: FinetuneRecipe, frames: SplitCounts, spent_s: float,
+                          judge_s: float, load: float) -> JobPlan:
+    """The stages after training fitted again to what is left of the minutes once ``spent_s`` are spent: judging
+    timed with the fine-tuned model (``judge_s`` a frame; a fine-tune that finds many weak poles judges slower than
+    the model it started from), rendering and exporting slowed by ``load``, the margin kept in hand for them alone.
+    The judged frames are cut, a quarter at a time down to their least, until blend, export and evaluate fit; never
+    raised above the first plan's."""
+    costs = replace(plan.costs, render=plan.costs.render * load, judge=max(judge_s, plan.costs.judge * load))
+    held_out_all = frames.test or frames.valid
+    wanted = _Work(recipe.copies, recipe.rehearsal_frames(frames.train * (1 + recipe.copies)),
+                   recipe.evaluation_frames, held_out_all, frames.valid)
+    work = _Work(plan.copies, plan.rehearsal_frames, plan.evaluation_frames, plan.held_out_frames or held_out_all,
+                 plan.blend_frames or frames.valid)
+    least = replace(work, evaluation=min(MIN_EVALUATION_FRAMES, work.evaluation),
+                    held_out=min(MIN_TEAM_FRAMES, work.held_out), blend=min(MIN_TEAM_FRAMES, work.blend))
+    export_s = EXPORT_S[plan.network] * load
+    left = 60 * plan.minutes - spent_s - export_s - MARGIN * plan.after_training_seconds()
+    work = _fit_judging(work, least, frames, costs, plan.network, recipe, left)
+    seconds = _seconds(work, frames, costs, plan.network, recipe)
+    return replace(plan, costs=costs, evaluation_frames=work.evaluation,
+                   held_out_frames=None if work.held_out >= held_out_all else work.held_out,
+                   blend_frames=None if work.blend >= frames.valid else work.blend,
+                   seconds={**plan.seconds, "blend": seconds["blend"], "export": export_s,
+                            "evaluate": seconds["evaluate"]},
+                   cuts=_cuts(wanted, work, frames, recipe, after_training=True))
+
+
+def overrun_note(plan: JobPlan, taken: dict[str, float], between_s: float) -> str | None:
+    """When the stages (``taken``) and the time between them (``between_s``: reports, loading) took longer in all
+    than the minutes: by how much, and the stages that ran furthest past their plan; None when the job kept to its
+    minutes."""
+    total = sum(taken.values()) + between_s
+    if total <= 60 * plan.minutes:
+        return None
+    late = sorted(((seconds - plan.planned(name), name, seconds) for name, seconds in taken.items()), reverse=True)
+    reasons = ", ".join(f"{name} took {seconds:.0f} s where {plan.planned(name):.0f} were planned"
+                        for excess, name, seconds in late[:2] if excess > 0)
+    return (f"this fine-tune took {total / 60:.1f} minutes of the {plan.minutes:g} asked for "
+            f"({total / 60 - plan.minutes:+.1f}): {reasons or 'no stage ran past its plan'} - a busy machine slows "
+            "every stage; give more --minutes, or run it when the machine is quiet")
 
 
 def describe(plan: JobPlan) -> str:

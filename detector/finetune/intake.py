@@ -27,9 +27,11 @@ class DatasetIntake(JsonRecord):
     poles: int
 
 
-def prepare_dataset(annotated: Path, out: Path, renames: dict[str, str] | None, seed: int) -> DatasetIntake:
+def prepare_dataset(annotated: Path, out: Path, renames: dict[str, str] | None, seed: int,
+                    more_train: Path | None = None) -> DatasetIntake:
     """Copy the ``annotated`` export into ``out`` (replaced), splitting its train frames into train and valid when it
-    has no valid frames; returns frames per split and what was done. Refuses an export without training frames."""
+    has no valid frames; ``more_train`` (a dataset: the teacher's labels) adds every frame of its own to train.
+    Returns frames per split and what was done. Refuses an export without training frames."""
     dataset = open_dataset(annotated, renames)
     train, valid, test = (dataset.split(name) for name in ("train", "valid", "test"))
     if not train:
@@ -45,8 +47,11 @@ def prepare_dataset(annotated: Path, out: Path, renames: dict[str, str] | None, 
         shares = {"train": 1.0 - VALID_SHARE, "valid": VALID_SHARE, "test": 0.0}
         assignment = stratified_assignment(train, shares, seed)  # two or more frames: valid gets at least one
         train, valid = ([s for s, a in zip(train, assignment) if a == name] for name in ("train", "valid"))
+    extra = open_dataset(more_train).samples if more_train is not None else []
     with DatasetWriter(out, force=True, protect=dataset.input_folders()) as writer:
         for split, samples in (("train", train), ("valid", valid), ("test", test)):
             for sample in samples:
                 writer.copy_sample(Sample(split, sample.image, sample.label, sample.instances))
+        for sample in extra:
+            writer.add("train", f"unlabelled_{sample.image.name}", sample.image, sample.instances)
     return DatasetIntake(annotated, writer.frames, moved, sum(len(s.instances) for s in train + valid + test))

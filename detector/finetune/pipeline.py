@@ -13,9 +13,11 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+import cv2
+
 from augment.run import AugmentSummary, augment_dataset, augment_once
 from detector.console import make_console
-from detector.datasets.intake import open_dataset
+from detector.datasets.intake import each_warning_once
 from detector.datasets.io import DatasetWriter, SplitCounts, load_dataset
 from detector.datasets.model import BAD_INPUT_ERRORS
 from detector.errors import keep_on_interrupt
@@ -23,12 +25,15 @@ from detector.evaluation.paired import REFERENCE
 from detector.evaluation.predictors import Predictor, TorchPredictor
 from detector.finetune import crop_network
 from detector.finetune.blend import BlendChoice, choose_blend
-from detector.finetune.budget import BudgetTooSmall, JobPlan, describe, measure_costs, plan_job, training_minutes
+from detector.finetune.budget import (TEACHING_SHARE, BudgetTooSmall, JobPlan, describe, judging_seconds,
+                                     machine_load, measure_costs, overrun_note, plan_job, replan_after_training,
+                                     training_minutes)
 from detector.finetune.intake import DatasetIntake, prepare_dataset
 from detector.finetune.judge import RENDERED_SETS, Judgement, compare_models, render_set
 from detector.finetune.recipe import DEFAULT_BLEND_SHARE, SIGN_TEST_LEVEL, FinetuneRecipe
 from detector.finetune.report import write_report
 from detector.finetune.results import ExportedModel, FinetuneResult, FinetuneStages, RehearsalSummary
+from detector.finetune.teacher import SHIPPED_SURE_CONF, TeacherLabels, teacher_labels
 from detector.formats import write_record
 from detector.model_files import add_metadata, read_checkpoint, read_info
 from detector.outputs import check_placement
@@ -43,28 +48,37 @@ from detector.training.summary import TrainingSummary
 from detector.training.train import TrainSettings, summarise_run, train_model, trained_minutes
 from export.onnx_export import int8_path
 from export.run import ExportJob, run_export
+from naoslam.perception.loading import load_detector
 from naoslam.shipped import OPERATING_CONF_KEY, resolve_model
 
 console = make_console()
 
 
-def run_finetune(annotated: Path, out: Path, recipe: FinetuneRecipe,
+def run_finetune(annotated: Path | None, out: Path, recipe: FinetuneRecipe,
                  renames: dict[str, str] | None = None) -> FinetuneResult:
     """Run every stage into ``out`` (an earlier fine-tune's folder resumes it); returns every stage's result.
+    ``annotated`` may be None where ``recipe.unlabelled`` gives the frames (the teacher labels them all).
     Raises ``StageFailed`` naming the stage that failed (everything before it stays)."""
-    annotated, out = Path(annotated), Path(out)
-    _check_run_folder(out, annotated)
+    if annotated is None and recipe.unlabelled is None:
+        raise ValueError("nothing to fine-tune on: give your annotated export, or --unlabelled FRAMES with --model "
+                         "robot, or both")
+    annotated, out = (Path(annotated) if annotated is not None else None), Path(out)
+    unlabelled = Path(recipe.unlabelled) if recipe.unlabelled else None
+    for given in (annotated, unlabelled):
+        if given is not None:
+            _check_run_folder(out, given)
     backdrops = scan_backdrops(Path(recipe.backgrounds)) if recipe.backgrounds else ()
     new_folder = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     ledger = StageLedger(out, announce=lambda text: console.rule(f"[bold]{text}", align="left"))
-    keep_on_interrupt(f"the finished stages and the training's last epoch are kept in {out}: run the same command "
-                      "again to resume where it stopped, within what is left of --minutes")
-    console.print(f"[bold]poles finetune[/bold] {annotated} into {out}: the shipped {recipe.model} model, "
+    keep_on_interrupt(_resume_note(out, recipe))
+    sources = " and ".join(str(given) for given in (annotated, unlabelled) if given is not None)
+    console.print(f"[bold]poles finetune[/bold] {sources} into {out}: the shipped {recipe.model} model, "
                   f"{recipe.minutes:g} minutes in all")
     start = time.perf_counter()
     try:
-        stages = _stages(ledger, annotated, out, recipe, renames or {}, backdrops)
+        with each_warning_once():  # the export's warnings, not once more for each of the run's copies of it
+            stages = _stages(ledger, annotated, out, recipe, renames or {}, backdrops)
     except StageFailed as failure:
         too_small = isinstance(failure.__cause__, BudgetTooSmall)
         if new_folder and (too_small or not any(record.status == "done" for record in ledger.records.values())):
@@ -77,14 +91,28 @@ def run_finetune(annotated: Path, out: Path, recipe: FinetuneRecipe,
                             wall_seconds_this_call=round(time.perf_counter() - start, 1), report=out / "report.html")
     write_report(result, ledger.timings())
     write_record(out / "metrics.json", "finetune", result.to_json())
+    ran = sum(record.seconds for record in ledger.timings() if record.ran)
+    late = overrun_note(stages.replan, {record.name: record.seconds for record in ledger.timings()},
+                        time.perf_counter() - start - ran)
+    if late:
+        console.print(f"[yellow]{late}")
     return result
+
+
+def _resume_note(out: Path, recipe: FinetuneRecipe) -> str:
+    """What an interrupted fine-tune keeps, as a rerun will find it: the accurate model's training resumes from its
+    last epoch, the robot's crop network (a minute or two) trains again."""
+    training = ("the crop network's training starts again (it takes a minute or two)" if recipe.start.network == "crops"
+                else "the training resumes from its last epoch")
+    return (f"the finished stages are kept in {out}: run the same command again to go on from the stage that stopped, "
+            f"within what is left of --minutes; {training}")
 
 
 def _check_run_folder(out: Path, annotated: Path) -> None:
     """Refuse an ``out`` that overlaps the annotated export (any folder it is read from) or lies inside a dataset, or
     is not a new, empty or earlier fine-tune's folder."""
     try:
-        inputs = open_dataset(annotated, progress=False).input_folders()
+        inputs = load_dataset(annotated).input_folders()
     except BAD_INPUT_ERRORS:  # the dataset stage says what is wrong with it
         inputs = (annotated,)
     check_placement(out, (annotated, *inputs))
@@ -92,24 +120,41 @@ def _check_run_folder(out: Path, annotated: Path) -> None:
 
 
 def _dataset_fingerprint(annotated: Path) -> str:
-    """Names, sizes and times of every file in the annotated export: a changed one reruns every stage."""
-    files = sorted(p for p in annotated.rglob("*") if p.is_file())
-    return stage_key(files=[(str(p.relative_to(annotated)), p.stat().st_size, p.stat().st_mtime_ns) for p in files])
+    """Names, sizes and times of every file in the annotated export (or of a video): a changed one reruns every
+    stage."""
+    files = [annotated] if annotated.is_file() else sorted(p for p in annotated.rglob("*") if p.is_file())
+    return stage_key(files=[(p.name if p == annotated else str(p.relative_to(annotated)), p.stat().st_size,
+                             p.stat().st_mtime_ns) for p in files])
 
 
-def _stages(ledger: StageLedger, annotated: Path, out: Path, recipe: FinetuneRecipe, renames: dict[str, str],
+def _stages(ledger: StageLedger, annotated: Path | None, out: Path, recipe: FinetuneRecipe, renames: dict[str, str],
             backdrops: tuple[Path, ...]) -> FinetuneStages:
     data, augmented, rehearsal, mixed = (out / name for name in ("dataset", "augmented", "rehearsal", "mixed"))
-    key = stage_key(dataset=_dataset_fingerprint(annotated), renames=renames, seed=recipe.seed)
+    taught, teacher_key = None, None
+    if recipe.unlabelled:
+        unlabelled, labelled = Path(recipe.unlabelled), out / "teacher"
+        teacher_key = stage_key(frames=_dataset_fingerprint(unlabelled), teacher=recipe.teacher,
+                                model=file_fingerprint(resolve_model(recipe.teacher)))
+        seconds = 60 * recipe.minutes * TEACHING_SHARE
+        taught = ledger.run("teacher", teacher_key, [labelled / "data.yaml"],
+                            lambda: _teach(unlabelled, labelled, recipe.teacher, seconds), TeacherLabels)
+    key = stage_key(dataset=_dataset_fingerprint(annotated) if annotated else None, teacher=teacher_key,
+                    renames=renames, seed=recipe.seed)
+    source = annotated or out / "teacher"
+    more = out / "teacher" if annotated and taught else None
     intake = ledger.run("dataset", key, [data / "data.yaml"],
-                        lambda: prepare_dataset(annotated, data, renames, recipe.seed), DatasetIntake)
+                        lambda: prepare_dataset(source, data, renames, recipe.seed, more), DatasetIntake)
     plan_key = stage_key(dataset=key, recipe=recipe.settings(), backdrops=len(backdrops))
-    plan = ledger.run("plan", plan_key, [], lambda: _plan(data, recipe, backdrops), JobPlan)
+    taught_s = ledger.records["teacher"].seconds if taught else 0.0
+    plan = ledger.run("plan", plan_key, [], lambda: _plan(data, recipe, backdrops, taught_s), JobPlan)
     console.print(describe(plan))
     for cut in plan.cuts:
         console.print(f"  {cut}")
+    if plan.short_of_an_epoch():
+        console.print(f"[yellow]{plan.short_of_an_epoch()}")
     paint_key = stage_key(dataset=key)
-    paint = ledger.run("paint", paint_key, [out / "paint.json"], lambda: _measure_paint(data, out, annotated), TeamPaint)
+    paint = ledger.run("paint", paint_key, [out / "paint.json"],
+                       lambda: _measure_paint(data, out, annotated or Path(recipe.unlabelled)), TeamPaint)
     augment_key = stage_key(dataset=key, copies=plan.copies)
     augment = ledger.run("augment", augment_key, [augmented / "data.yaml"], lambda: augment_dataset(
         data, augmented, copies=plan.copies, seed=recipe.seed, preview=True, force=True), AugmentSummary)
@@ -128,24 +173,28 @@ def _stages(ledger: StageLedger, annotated: Path, out: Path, recipe: FinetuneRec
     trained = run / ("poles-robot.pt" if recipe.start.network == "crops" else "weights/last.pt")
     train = ledger.run("train", train_key, [trained], lambda: _train(train_key, mixed, run, recipe, plan, spent),
                        TrainingSummary)
+    replan = ledger.run("replan", stage_key(train=train_key, plan=plan_key), [],
+                        lambda: _replan(plan, data, trained, recipe, ledger), JobPlan)
     conf = float(_starting_metadata(recipe)[OPERATING_CONF_KEY])
     blend_key = stage_key(train=train_key, conf=conf, default_share=DEFAULT_BLEND_SHARE, level=SIGN_TEST_LEVEL,
-                          frames=plan.blend_frames)
+                          frames=replan.blend_frames)
     blend = ledger.run("blend", blend_key, [out / "blend"],
-                       lambda: _blend(trained, data, out / "blend", conf, recipe, plan.blend_frames), BlendChoice)
+                       lambda: _blend(trained, data, out / "blend", conf, recipe, replan.blend_frames), BlendChoice)
     export_key = stage_key(blend=blend_key)
     model = out / "models" / recipe.start.finetuned_name
     exported = ledger.run("export", export_key, [model],
                           lambda: _export_model(blend.weights, model, data, mixed, recipe), ExportedModel)
-    evaluate_key = stage_key(export=export_key, frames=plan.evaluation_frames, held_out=plan.held_out_frames,
+    evaluate_key = stage_key(export=export_key, frames=replan.evaluation_frames, held_out=replan.held_out_frames,
                              sets=RENDERED_SETS)
     judgement = ledger.run("evaluate", evaluate_key, [out / "evaluation" / "summary.json"], lambda: _evaluate(
-        out / "evaluation", data, trained, blend, conf, recipe, plan), Judgement)
-    return FinetuneStages(intake, plan, paint, augment, rendered, mix, train, blend, exported, judgement)
+        out / "evaluation", data, trained, blend, conf, recipe, replan), Judgement)
+    return FinetuneStages(taught, intake, plan, paint, augment, rendered, mix, train, replan, blend, exported,
+                          judgement)
 
 
-def _plan(data: Path, recipe: FinetuneRecipe, backdrops: tuple[Path, ...]) -> JobPlan:
-    """The work fitted to ``recipe.minutes``, from this machine's speed at each kind of work on the team's frames."""
+def _plan(data: Path, recipe: FinetuneRecipe, backdrops: tuple[Path, ...], taught_s: float) -> JobPlan:
+    """The work fitted to ``recipe.minutes`` less the teacher's ``taught_s``, from this machine's speed at each kind
+    of work on the team's frames."""
     dataset = load_dataset(data)
     samples = [sample for split in ("train", "valid") for sample in dataset.split(split)]
     job = SynthJob(1, recipe.seed + 7000, config=SceneConfig(far_share=recipe.far_share), backgrounds=backdrops,
@@ -153,7 +202,46 @@ def _plan(data: Path, recipe: FinetuneRecipe, backdrops: tuple[Path, ...]) -> Jo
     predictor = judging_predictor(recipe)(recipe.start.weights)
     costs = measure_costs(samples, lambda: render_one(job, 0), predictor, augment_once, default_workers(1000))
     frames = SplitCounts(*(len(dataset.split(split)) for split in ("train", "valid", "test")))
-    return plan_job(recipe, frames, costs, recipe.start.network)
+    return plan_job(recipe, frames, costs, recipe.start.network, taught_s)
+
+
+def _teach(unlabelled: Path, folder: Path, teacher: str, seconds: float) -> TeacherLabels:
+    """The unlabelled frames labelled by ``teacher`` where it is sure (the shipped model at the threshold of its 95 %
+    precision, another at its own threshold), in about ``seconds``; refused when it is sure of too few."""
+    sure = SHIPPED_SURE_CONF if teacher == "shipped" else load_detector(teacher).conf
+    taught = teacher_labels(unlabelled, folder, teacher, sure, seconds)
+    every = f", every {taught.stride}th frame to keep to --minutes" if taught.stride > 1 else ""
+    console.print(f"the teacher labelled {taught.kept} of {taught.frames} frames{every} ({taught.poles} poles, "
+                  f"{taught.pole_free} without; {taught.unsure} left out where it was unsure), {taught.test} held out")
+    if taught.kept - taught.test < 2:
+        raise ValueError(f"{unlabelled}: the teacher is sure of {taught.kept} of its {taught.frames} frames, too few "
+                         "to train on - record more frames, or label some and pass them as the export")
+    return taught
+
+
+def _replan(plan: JobPlan, data: Path, trained: Path, recipe: FinetuneRecipe, ledger: StageLedger) -> JobPlan:
+    """The stages after training fitted to what is left of the minutes, judging timed with the fine-tuned model on
+    the team's held-out frames and the machine's load read from the stages before; says what it cut."""
+    dataset = load_dataset(data)
+    held_out = dataset.split("test") or dataset.split("valid")
+    frames = [cv2.imread(str(sample.image)) for sample in held_out[:4]]
+    judge_s = judging_seconds(judging_predictor(recipe)(trained), frames) + plan.costs.decode
+    taken = {record.name: record.seconds for record in ledger.timings()}
+    load = machine_load(plan, taken)
+    counts = SplitCounts(*(len(dataset.split(split)) for split in ("train", "valid", "test")))
+    spent = sum(taken.values()) + plan.seconds["start"]
+    replan = replan_after_training(plan, recipe, counts, spent, judge_s, load)
+    console.print(f"{spent / 60:.1f} of {plan.minutes:g} minutes spent; judging the fine-tune takes {judge_s:.2f} s a "
+                  f"frame ({plan.costs.judge:.2f} planned), the stages before ran {load:.1f}x their plan")
+    held_out_all, valid_all = counts.test or counts.valid, counts.valid
+    for what, before, after in (("frames per rendered judging set", plan.evaluation_frames, replan.evaluation_frames),
+                                ("held-out frames judged", plan.held_out_frames or held_out_all,
+                                 replan.held_out_frames or held_out_all),
+                                ("valid frames each blend is scored on", plan.blend_frames or valid_all,
+                                 replan.blend_frames or valid_all)):
+        if after < before:
+            console.print(f"  {after} {what}, not {before}, to keep to --minutes")
+    return replan
 
 
 def _measure_paint(data: Path, out: Path, annotated: Path) -> TeamPaint:

@@ -82,6 +82,10 @@ class FinetuneRecipe:
     seed: int = 0
     #: Frames in each rendered set the models are judged on.
     evaluation_frames: int = 100
+    #: A folder of unlabelled frames (or a video) the ``teacher`` labels where it is sure, trained on beside the
+    #: export (the robot model only: the accurate model teaches it).
+    unlabelled: str | None = None
+    teacher: str = "shipped"
 
     def __post_init__(self) -> None:
         if self.model not in STARTING_MODELS:
@@ -100,6 +104,9 @@ class FinetuneRecipe:
             raise ValueError(f"--copies {self.copies} must be 0 or more")
         if self.freeze is not None and self.freeze < 0:
             raise ValueError(f"--freeze {self.freeze} must be 0 or more")
+        if self.unlabelled is not None and self.model != "robot":
+            raise ValueError("--unlabelled teaches the robot model with the accurate one as its teacher - add "
+                             "--model robot (the accurate model would only learn its own answers back)")
         if self.imgsz is not None and self.imgsz % 32:
             raise ValueError(f"--imgsz {self.imgsz} is not a multiple of the model stride 32 (try "
                              f"{self.imgsz // 32 * 32 or 32})")

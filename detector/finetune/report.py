@@ -10,6 +10,7 @@ from detector.finetune.blend import BlendChoice
 from detector.finetune.budget import JobPlan, describe
 from detector.finetune.judge import Judgement
 from detector.finetune.results import ExportedModel, FinetuneResult, FinetuneStages
+from detector.finetune.teacher import TEST_EVERY
 from detector.html_page import image, page, percent, table
 from detector.stages import StageRecord
 from detector.training.summary import TrainingSummary
@@ -22,7 +23,7 @@ def write_report(result: FinetuneResult, timings: list[StageRecord]) -> Path:
     parts = [f"<h1>poles finetune: {html.escape(str(stages.dataset.source))}</h1>",
              f"<p class='note'>The shipped {html.escape(result.recipe.model)} model, fine-tuned on your frames.</p>",
              _verdict(stages.evaluate), _evaluation(stages.evaluate),
-             _stages(timings, result.recipe.settings(), stages.plan),
+             _stages(timings, result.recipe.settings(), stages.replan),
              _data(stages), _training(stages.train), _blend(stages.blend), _export(stages.export)]
     return write_text(result.report, page("poles finetune report", parts))
 
@@ -69,9 +70,8 @@ def _evaluation(judgement: Judgement) -> str:
 
 
 def _stages(timings: list[StageRecord], settings: dict, plan: JobPlan) -> str:
-    planned = {"dataset": ("start", "dataset"), "train": ("training start", "train")}
-    rows = [[r.name, r.status + ("" if r.ran else " (reused)"), f"{r.seconds:.0f}",
-             f"{sum(plan.seconds.get(part, 0.0) for part in planned.get(r.name, (r.name,))):.0f}"] for r in timings]
+    rows = [[r.name, r.status + ("" if r.ran else " (reused)"), f"{r.seconds:.0f}", f"{plan.planned(r.name):.0f}"]
+            for r in timings]
     recipe = [[key.replace("_", " "), value] for key, value in settings.items()]
     cuts = "".join(f"<li>{html.escape(cut)}</li>" for cut in plan.cuts)
     return ("<h2>Stages and time taken</h2>"
@@ -93,7 +93,15 @@ def _data(stages: FinetuneStages) -> str:
     swatches = "".join(f"<tr><td>{letter}</td><td>{_swatch(rgb)}</td><td>{paint.measured[letter]}</td></tr>"
                        for letter, rgb in paint.letters.items())
     frames = intake.frames
-    return (f"<h2>Your frames</h2><p>train {frames.train}, valid {frames.valid}{split_note}, test "
+    taught = stages.teacher
+    teacher = "" if taught is None else (
+        f"<p>Unlabelled frames: {html.escape(str(taught.source))}, {taught.frames} read; the teacher "
+        f"({html.escape(taught.teacher)}, sure at {taught.sure_conf:.2f}) labelled {taught.kept} ({taught.poles} "
+        f"poles, {taught.pole_free} frames without one) and left {taught.unsure} out where a detection lay between "
+        f"{taught.floor_conf:.2f} and {taught.sure_conf:.2f}. Every {TEST_EVERY}th kept frame ({taught.test}) was "
+        "held out: judged against the teacher's labels, those figures say how far the robot model agrees with its "
+        "teacher, not with the truth.</p>")
+    return (f"<h2>Your frames</h2>{teacher}<p>train {frames.train}, valid {frames.valid}{split_note}, test "
             f"{frames.test}; {intake.poles} poles. Training set: {mix.train} frames (your augmented frames and "
             f"{stages.rehearsal.frames} rendered in your paint), validated on {mix.valid}.</p>"
             f"<p>Paint measured on {paint.poles} poles ({paint.skipped} too small), "

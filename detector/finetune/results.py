@@ -11,6 +11,7 @@ from detector.finetune.budget import JobPlan
 from detector.finetune.intake import DatasetIntake
 from detector.finetune.judge import Judgement
 from detector.finetune.recipe import FinetuneRecipe
+from detector.finetune.teacher import TeacherLabels
 from detector.records import JsonRecord
 from detector.synth.team_paint import TeamPaint
 from detector.training.summary import TrainingSummary
@@ -42,8 +43,9 @@ class ExportedModel(JsonRecord):
 
 @dataclass(frozen=True)
 class FinetuneStages(JsonRecord):
-    """Every stage's result, in the order they run."""
+    """Every stage's result, in the order they run (``teacher`` None without ``--unlabelled``)."""
 
+    teacher: TeacherLabels | None
     dataset: DatasetIntake
     plan: JobPlan
     paint: TeamPaint
@@ -51,6 +53,8 @@ class FinetuneStages(JsonRecord):
     rehearsal: RehearsalSummary
     mix: SplitCounts
     train: TrainingSummary
+    #: The plan for the stages after training, fitted again once it had ended.
+    replan: JobPlan
     blend: BlendChoice
     export: ExportedModel
     evaluate: Judgement

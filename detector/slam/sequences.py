@@ -10,6 +10,7 @@ import cv2
 import numpy as np
 
 from detector.console import show_progress
+from detector.datasets.check import MIN_FRAME_SIDE
 from detector.datasets.io import csv_rows, require_decodable
 from detector.datasets.names import canonical_class
 from naoslam.camera import CameraPose
@@ -116,17 +117,46 @@ def recorded_sequence(frames_dir: Path, odometry_csv: Path, front_end: FrontEndS
         stamped.append((t, path))
     require_decodable([path for _, path in stamped])
     measure = front_end.measurer()
-    frames, grey = [], 0
+    frames, blind = [], {reason: [] for reason in BLIND_FRAMES}
     for t, path in show_progress(sorted(stamped), f"through {Path(front_end.model).name}", "frame", enabled=progress):
         image = cv2.imread(str(path))
-        grey += is_greyscale(image)
+        reason = blind_reason(image)
+        if reason:
+            blind[reason].append(path)
         pose = poses[int(np.argmin(np.abs(times - t - time_offset_s)))] if poses and camera_pose else None
-        frames.append(Event(t, measurements=measure(image, pose)))
-    if grey == len(frames):
-        raise ValueError(f"{frames_dir}: every frame is greyscale - a pole's class is the colour of its bands, so no "
-                         "front end can find or name one: record the camera's colour frames")
+        frames.append(Event(t, measurements=[] if reason else measure(image, pose)))
+    _report_blind_frames(frames_dir, blind, len(frames))
     events = merge_frames(controls, frames, time_offset_s)
     return Sequence(events, np.array(rows[0][1:]), OdometryModel(), {}, f"recording {Path(frames_dir).name}")
+
+
+#: Why a recorded frame cannot show a front end a pole, and what to do about it.
+BLIND_FRAMES = {
+    "greyscale": "a pole's class is the colour of its bands, so no front end can find or name one: record the "
+                 "camera's colour frames",
+    f"smaller than {MIN_FRAME_SIDE} px a side": "too small to show a pole: record the camera's full frames",
+}
+
+
+def blind_reason(image: np.ndarray) -> str | None:
+    """Which of ``BLIND_FRAMES`` a decoded recording frame is, or None when a front end can look at it."""
+    if min(image.shape[:2]) < MIN_FRAME_SIDE:
+        return f"smaller than {MIN_FRAME_SIDE} px a side"
+    return "greyscale" if is_greyscale(image) else None
+
+
+def _report_blind_frames(frames_dir: Path, blind: dict[str, list[Path]], total: int) -> None:
+    """Refuse a recording whose every frame is blind; else say how many frames, and the first, for each reason that
+    leaves some unseen (they stay in the recording as frames that saw nothing)."""
+    found = {reason: paths for reason, paths in blind.items() if paths}
+    if sum(len(paths) for paths in found.values()) == total:
+        kinds = " or ".join(found)
+        fixes = "; ".join(BLIND_FRAMES[reason] for reason in found)
+        raise ValueError(f"{frames_dir}: every frame is {kinds} ({min(found.values(), key=len)[0].name} among them) - "
+                         f"{fixes}")
+    for reason, paths in found.items():
+        print(f"note: {frames_dir}: {len(paths)} of {total} frames are {reason} ({paths[0].name} first) and see "
+              f"no pole - {BLIND_FRAMES[reason]}")
 
 
 def is_greyscale(image: np.ndarray) -> bool:
