@@ -34,6 +34,7 @@ class OpenVinoForward:
         except ImportError:
             raise ValueError("engine 'openvino' needs the openvino package: pip install openvino") from None
         self.core = ov.Core()
+        self.name = str(model) if isinstance(model, (str, Path)) else "the model"
         if isinstance(model, (str, Path)):
             model = self.core.read_model(str(model))
         self.model = self.core.read_model(model) if isinstance(model, bytes) else model  # bytes: an ONNX graph
@@ -45,7 +46,12 @@ class OpenVinoForward:
         if shape not in self.compiled:
             model = self.model.clone()
             model.reshape({model.inputs[0].any_name: list(shape)})
-            self.compiled[shape] = self.core.compile_model(model, "CPU", openvino_config(self.threads))
+            try:
+                self.compiled[shape] = self.core.compile_model(model, "CPU", openvino_config(self.threads))
+            except RuntimeError as error:  # the YOLOv8 models at the Atom's SSE4 level: "bad combination"
+                why = str(error).strip().splitlines()[-1]
+                raise ValueError(f"{self.name}: OpenVINO cannot compile it for this processor ({why}) - run it with "
+                                 "engine='onnxruntime', which runs every model on every x86 CPU") from None
         result = self.compiled[shape](blob)
         return [result[i] for i in range(len(result))]
 
