@@ -8,7 +8,7 @@ compared on the held-out group, on fresh rendered sets (everything, far poles) a
 field, half of it back-lit; one table. ``--own-field`` rehearses over that field's frames (``poles finetune
 --backgrounds``), standing in for a team's own field without poles.
 Usage: python benchmarks/bench_finetune.py real [--model accurate|robot] [--minutes 15] [--epochs N] [--frames 200] [--rehearsal-share S] [--own-field] [--freeze N]
-       [--lr0 L] [--out FOLDER]
+       [--lr0 L] [--unlabelled] [--out FOLDER]
 
 ``rendered`` mode (the default): how good is a user's model after minutes of CPU training, from scratch against from
 the shipped pole model? The "user" dataset is unlike the shipped model's training data: another seed, another camera (1280x960, the
@@ -27,6 +27,7 @@ import shutil
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 os.environ.setdefault("YOLO_OFFLINE", "true")
@@ -141,6 +142,9 @@ def real_mode(argv: list[str]) -> None:
     parser.add_argument("--warmup-epochs", type=float, default=defaults.warmup_epochs)
     parser.add_argument("--own-field", action="store_true",
                         help="rehearse over ../shared/real-backgrounds' frames of the Dutch Nao Team's field")
+    parser.add_argument("--unlabelled", action="store_true",
+                        help="the training group's frames without their labels (`poles finetune --unlabelled`, the "
+                             "accurate model as teacher), the test group's as the labelled export")
     parser.add_argument("--out", type=Path, help="keep every run here (default: a temporary folder)")
     args = parser.parse_args(argv)
     real, backgrounds = SHARED / "real-poles", SHARED / "real-backgrounds" / "images"
@@ -161,8 +165,14 @@ def real_mode(argv: list[str]) -> None:
             name = f"{train_group} -> {test_group}"
             folder = root / name.split()[0]
             shutil.rmtree(folder, ignore_errors=True)
-            export = group_export(real, GROUPS[train_group], GROUPS[test_group], folder / "export")
-            result = run_finetune(export, folder / "run", recipe)
+            if args.unlabelled:
+                export = group_export(real, "-", GROUPS[test_group], folder / "export")  # no frame starts with "-"
+                frames = linked_folder(tuple(sorted((real / "test" / "images").glob(f"{GROUPS[train_group]}*"))),
+                                       folder / "unlabelled")
+                result = run_finetune(export, folder / "run", replace(recipe, unlabelled=str(frames)))
+            else:
+                export = group_export(real, GROUPS[train_group], GROUPS[test_group], folder / "export")
+                result = run_finetune(export, folder / "run", recipe)
             timings[name] = result.seconds
             stages = result.stages
             group_rows = list(stages.evaluate.rows)
@@ -171,7 +181,7 @@ def real_mode(argv: list[str]) -> None:
                           group_rows[-1].model: stages.blend.weights}
                 backdrop_set = render_set(folder / "backdrops", args.frames, 0.0, 9103, other_rooms,
                                           backlight_share=0.5)
-                group_rows += compare_models(models, {"over other rooms, half back-lit": (backdrop_set, "test")},
+                group_rows += compare_models(models, {"over other rooms, half back-lit": (backdrop_set, "test", None)},
                                              folder / "backdrops-evaluation", stages.evaluate.conf,
                                              judging_predictor(recipe))
             rows += [(name, row) for row in group_rows]

@@ -448,6 +448,12 @@ def test_unlabelled_frames_alone_fine_tune_the_robot_model_and_the_report_says_w
     assert "Unlabelled frames" in (tmp_path / "run" / "report.html").read_text()
     both = prepare_dataset(export, tmp_path / "both", {}, 0, more_train=tmp_path / "run" / "teacher")
     assert both.frames.train == len(load_dataset(export).split("train")) + stages.teacher.kept
+    held_out = Path(shutil.copytree(export, tmp_path / "held-out"))  # a team that labelled only its test frames
+    for split in ("train", "valid"):
+        shutil.rmtree(held_out / split)
+    only = prepare_dataset(held_out, tmp_path / "only", {}, 0, more_train=tmp_path / "run" / "teacher")
+    assert only.frames.test == len(load_dataset(export).split("test")) and only.valid_made_from_train
+    assert only.frames.train + only.frames.valid == stages.teacher.kept
 
 
 @pytest.mark.parametrize("arguments, words", [

@@ -3,7 +3,7 @@ run in this project's class order, and given a valid split when it has none (the
 The export itself is only read."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from detector.datasets.intake import open_dataset
@@ -30,10 +30,15 @@ class DatasetIntake(JsonRecord):
 def prepare_dataset(annotated: Path, out: Path, renames: dict[str, str] | None, seed: int,
                     more_train: Path | None = None) -> DatasetIntake:
     """Copy the ``annotated`` export into ``out`` (replaced), splitting its train frames into train and valid when it
-    has no valid frames; ``more_train`` (a dataset: the teacher's labels) adds every frame of its own to train.
-    Returns frames per split and what was done. Refuses an export without training frames."""
+    has no valid frames; ``more_train`` (a dataset: the teacher's labels) adds every frame of its own to train
+    (named ``unlabelled_*``), so an export of held-out frames alone is enough beside it. Returns frames per split and
+    what was done. Refuses an export without frames to train on."""
     dataset = open_dataset(annotated, renames)
     train, valid, test = (dataset.split(name) for name in ("train", "valid", "test"))
+    taught = [replace(sample, split="train") for sample in open_dataset(more_train).samples] \
+        if more_train is not None else []
+    taught_ids = {id(sample) for sample in taught}
+    train = train + taught
     if not train:
         held = ", ".join(f"{name} {len(dataset.split(name))}" for name in ("valid", "test") if dataset.split(name))
         raise ValueError(f"{annotated}: no frame in the train split ({held or 'no frames at all'}) - fine-tuning needs "
@@ -47,11 +52,12 @@ def prepare_dataset(annotated: Path, out: Path, renames: dict[str, str] | None, 
         shares = {"train": 1.0 - VALID_SHARE, "valid": VALID_SHARE, "test": 0.0}
         assignment = stratified_assignment(train, shares, seed)  # two or more frames: valid gets at least one
         train, valid = ([s for s, a in zip(train, assignment) if a == name] for name in ("train", "valid"))
-    extra = open_dataset(more_train).samples if more_train is not None else []
     with DatasetWriter(out, force=True, protect=dataset.input_folders()) as writer:
         for split, samples in (("train", train), ("valid", valid), ("test", test)):
             for sample in samples:
-                writer.copy_sample(Sample(split, sample.image, sample.label, sample.instances))
-        for sample in extra:
-            writer.add("train", f"unlabelled_{sample.image.name}", sample.image, sample.instances)
-    return DatasetIntake(annotated, writer.frames, moved, sum(len(s.instances) for s in train + valid + test))
+                if id(sample) in taught_ids:
+                    writer.add(split, f"unlabelled_{sample.image.name}", sample.image, sample.instances)
+                else:
+                    writer.copy_sample(Sample(split, sample.image, sample.label, sample.instances))
+    poles = sum(len(s.instances) for s in train + valid + test if id(s) not in taught_ids)
+    return DatasetIntake(annotated, writer.frames, moved, poles)
