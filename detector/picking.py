@@ -29,6 +29,7 @@ from detector.prediction import detections_to_instances, draw_detections, frames
 from detector.preview import contact_sheet, draw_label
 from detector.records import JsonRecord
 from naoslam.perception.detections import Detection
+from naoslam.perception.interface import PoleDetector
 from naoslam.perception.loading import load_detector
 
 #: How far below each front end's own threshold a detection counts as unsure (it would flip with a little change).
@@ -134,9 +135,7 @@ def pick_frames(source: Path, out: Path, count: int, teacher: str | Path = "ship
         raise ValueError(f"--count {count}: pick at least one frame")
     total, _, frames = frames_in(source, subfolders=True)  # every frame decodes, before a model loads
     check_output_folder(out, force, (Path(source).resolve(),), DATASET)
-    accurate_conf, robot_conf = load_detector(teacher).conf, load_detector(robot).conf
-    accurate = load_detector(teacher, conf=max(0.01, accurate_conf - NEAR_THRESHOLD))
-    robot_front = load_detector(robot, conf=max(0.01, robot_conf - NEAR_THRESHOLD))
+    (accurate, accurate_conf), (robot_front, robot_conf) = _near_threshold(teacher), _near_threshold(robot)
     scored = [frame_disagreement(index, name, accurate(frame), accurate_conf, robot_front(frame), robot_conf)
               for index, (name, frame, _) in enumerate(show_progress(frames, "comparing", "frame", total=total,
                                                                      enabled=progress))]
@@ -160,6 +159,14 @@ def pick_frames(source: Path, out: Path, count: int, teacher: str | Path = "ship
 
     write_prelabels(out, labelled(), fmt, force, Path(source).resolve(), beside)
     return result
+
+
+def _near_threshold(model: str | Path) -> tuple[PoleDetector, float]:
+    """The model's front end, reporting down to ``NEAR_THRESHOLD`` under its own threshold, and that threshold."""
+    detector = load_detector(model)
+    threshold = detector.conf
+    detector.conf = max(0.01, threshold - NEAR_THRESHOLD)
+    return detector, threshold
 
 
 def _tile(frame: np.ndarray, accurate: list[Detection], robot: list[Detection], robot_conf: float) -> np.ndarray:

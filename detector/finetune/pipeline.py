@@ -48,7 +48,6 @@ from detector.training.summary import TrainingSummary
 from detector.training.train import TrainSettings, summarise_run, train_model, trained_minutes
 from export.onnx_export import int8_path
 from export.run import ExportJob, run_export
-from naoslam.perception.loading import load_detector
 from naoslam.shipped import OPERATING_CONF_KEY, resolve_model
 
 console = make_console()
@@ -208,8 +207,7 @@ def _plan(data: Path, recipe: FinetuneRecipe, backdrops: tuple[Path, ...], taugh
 def _teach(unlabelled: Path, folder: Path, teacher: str, seconds: float) -> TeacherLabels:
     """The unlabelled frames labelled by ``teacher`` where it is sure (the shipped model at the threshold of its 95 %
     precision, another at its own threshold), in about ``seconds``; refused when it is sure of too few."""
-    sure = SHIPPED_SURE_CONF if teacher == "shipped" else load_detector(teacher).conf
-    taught = teacher_labels(unlabelled, folder, teacher, sure, seconds)
+    taught = teacher_labels(unlabelled, folder, teacher, SHIPPED_SURE_CONF if teacher == "shipped" else None, seconds)
     every = f", every {taught.stride}th frame to keep to --minutes" if taught.stride > 1 else ""
     console.print(f"the teacher labelled {taught.kept} of {taught.frames} frames{every} ({taught.poles} poles, "
                   f"{taught.pole_free} without; {taught.unsure} left out where it was unsure), {taught.test} held out")

@@ -19,6 +19,7 @@ from detector.datasets.io import DatasetWriter
 from detector.prediction import detections_to_instances, frames_in, jpeg_bytes
 from detector.records import JsonRecord
 from naoslam.perception.loading import load_detector
+from naoslam.shipped import DEFAULT_CONF
 
 #: Below this confidence the teacher's detections count as nothing seen.
 FLOOR_CONF = 0.1
@@ -51,14 +52,16 @@ class TeacherLabels(JsonRecord):
     floor_conf: float
 
 
-def teacher_labels(source: Path, out: Path, teacher: str, sure_conf: float, seconds: float,
+def teacher_labels(source: Path, out: Path, teacher: str, sure_conf: float | None, seconds: float,
                    progress: bool = True) -> TeacherLabels:
     """Label the frames of ``source`` (a folder, subfolders too, or a video) with ``teacher`` into a YOLOv8 dataset
-    at ``out`` (train and test splits), keeping only the frames it is sure of; returns what it kept. Once the first
+    at ``out`` (train and test splits), keeping only the frames it is sure of (at ``sure_conf``; None: the
+    teacher's own threshold); returns what it kept. Once the first
     ``TIMED_FRAMES`` are labelled, every so many frames are labelled from then on, evenly over the recording, so
     the whole takes about ``seconds``."""
     total, _, frames = frames_in(source, subfolders=True)
     detector = load_detector(teacher, conf=FLOOR_CONF)
+    sure_conf = sure_conf if sure_conf is not None else detector.stored_conf or DEFAULT_CONF
     kept = pole_free = unsure = poles = test = looked = 0
     stride, began = 1, time.perf_counter()
     with DatasetWriter(out, force=True, protect=(Path(source).resolve(),)) as writer:
