@@ -28,7 +28,7 @@ FORMATS: dict[str, int] = {
     "calibration": 1,  # poles calibrate's calibration.json
     "export report": 1,  # poles export's MODEL.export.json
     "stages": 1,  # the stages.json of poles demo and poles finetune
-    "robot training": 3,  # poles train-robot's history.json (2: second_look_crops added; 3: preclassifier added)
+    "robot training": 4,  # poles train-robot's history.json (2: second_look_crops; 3: preclassifier; 4: teacher added)
     "augment": 1,  # poles augment's augment.json
     "paint": 1,  # paint.json of poles synth --paint-from and poles finetune
     "demo evaluation": 1,  # poles demo's evaluation/summary.json

@@ -110,18 +110,26 @@ class RobotTraining(JsonRecord):
     #: The checkpoint it started from (None: from scratch).
     weights: Path | None
     model: Path
+    #: The checkpoint whose class scores the network learnt beside the labels (None: the labels alone).
+    teacher: Path | None = None
 
 
 def train_robot_front_end(data: list[Path], out: Path, settings: CropTrainSettings = CropTrainSettings(),
                           weights: Path | None = None, force: bool = False, protect: tuple[Path, ...] = (),
-                          progress: bool = True) -> RobotTraining:
-    """Train the crop network on ``data`` into the run folder ``out``; returns its summary (also in history.json)."""
+                          progress: bool = True, teacher: Path | None = None) -> RobotTraining:
+    """Train the crop network on ``data`` into the run folder ``out`` (learning the class scores of the crop
+    network in the ``teacher`` checkpoint too, where one is given); returns its summary (also in history.json)."""
     data = [Path(root) for root in data]
     opened = open_training_data(data, progress)
     datasets = [dataset for dataset, _ in opened]
     inputs = (*protect, *(folder for dataset in datasets for folder in dataset.input_folders()))
     check_output_folder(out, force, inputs, RUN_KIND)
     start = load_checkpoint(weights) if weights is not None else None
+    teacher_network = load_checkpoint(teacher, "--teacher") if teacher is not None else None
+    student_size = start.size_wh if start is not None else CROP_SIZE_WH
+    if teacher_network is not None and teacher_network.size_wh != student_size:
+        raise ValueError(f"{teacher}: its crop network looks at {_size(teacher_network.size_wh)} crops, the one "
+                         f"trained here at {_size(student_size)} - give a teacher of the same crop size")
     if start is None and settings.epochs == 0:
         raise ValueError("--epochs 0 trains no new crop network, only on a trained one's second looks or its "
                          "preclassifier: give the one to start from with --weights (a poles-robot.pt)")
@@ -133,7 +141,8 @@ def train_robot_front_end(data: list[Path], out: Path, settings: CropTrainSettin
             raise ValueError(f"{', '.join(map(str, data))}: no labelled pole in the {name} split - the crop network "
                              f"needs poles to learn from in train and valid (`poles split` makes both)")
     with output_folder(out, force, inputs, RUN_KIND) as folder:
-        network, history = train_crop_network(train, valid, settings, start) if settings.epochs else (start, [])
+        network, history = train_crop_network(train, valid, settings, start, teacher=teacher_network) \
+            if settings.epochs else (start, [])
         if history and max(h.pole_recall for h in history) == 0:
             raise ValueError(f"{', '.join(map(str, data))}: after {len(history)} epoch(s) the crop network finds none "
                              f"of the {int((valid.classes != NO_POLE).sum())} pole crops of the valid frames, so no "
@@ -144,7 +153,8 @@ def train_robot_front_end(data: list[Path], out: Path, settings: CropTrainSettin
         left = None if settings.minutes is None else settings.minutes - sum(h.seconds for h in history) / 60
         if settings.second_look_epochs and (left is None or left > 0):
             network, looks, mined = train_on_second_looks(network, folder / MODEL, datasets, train, valid,
-                                                          replace(settings, minutes=left), progress)
+                                                          replace(settings, minutes=left), progress,
+                                                          teacher_network)
             last_stage = [replace(h, epoch=len(history) + h.epoch) for h in looks]
             history = history + last_stage
             difference = export_crop_network(network, folder / MODEL, valid.crops[:256], EXPORT_CONF)
@@ -160,10 +170,15 @@ def train_robot_front_end(data: list[Path], out: Path, settings: CropTrainSettin
         best = max(last_stage, key=lambda h: h.score) if last_stage else None
         summary = RobotTraining(tuple(data), len(train), len(valid), int((train.classes != NO_POLE).sum()), mined, best,
                                 len(history), round(sum(h.seconds for h in history) / 60, 2), float(difference),
-                                float(threshold), float(f1), settings, preclassifier, weights, Path(out) / MODEL)
+                                float(threshold), float(f1), settings, preclassifier, weights, Path(out) / MODEL,
+                                teacher)
         epochs = [asdict(h) for h in history]
         write_record(folder / "history.json", "robot training", {**summary.to_json(), "history": epochs})
     return summary
+
+
+def _size(size_wh: tuple[int, int]) -> str:
+    return f"{size_wh[0]}x{size_wh[1]}"
 
 
 def add_preclassifier(model: Path, network: PoleCropNet, datasets: list[Dataset], valid: CropSet,
@@ -182,11 +197,11 @@ def add_preclassifier(model: Path, network: PoleCropNet, datasets: list[Dataset]
 
 
 def train_on_second_looks(network: PoleCropNet, model: Path, datasets: list[Dataset], train: CropSet, valid: CropSet,
-                          settings: CropTrainSettings,
-                          progress: bool = True) -> tuple[PoleCropNet, list[EpochResult], int]:
+                          settings: CropTrainSettings, progress: bool = True,
+                          teacher: PoleCropNet | None = None) -> tuple[PoleCropNet, list[EpochResult], int]:
     """The network (exported at ``model``) trained on for ``settings.second_look_epochs`` with the second-look crops
-    its first look finds in the train and valid frames added; returns the network, those epochs' figures and the
-    number of second-look train crops."""
+    its first look finds in the train and valid frames added (learning ``teacher``'s class scores too, where there
+    is one); returns the network, those epochs' figures and the number of second-look train crops."""
     detector = CropDetector(model, threads=settings.threads)
     train_looks, valid_looks = (second_look_crops(detector, datasets, split, progress) for split in ("train", "valid"))
     print(f"second looks: {len(train_looks)} train crops ({int((train_looks.classes != NO_POLE).sum())} poles), "
@@ -194,5 +209,6 @@ def train_on_second_looks(network: PoleCropNet, model: Path, datasets: list[Data
     more = replace(settings, epochs=settings.second_look_epochs,
                    learning_rate=settings.learning_rate * SECOND_LOOK_LEARNING_RATE_SHARE)
     network, history = train_crop_network(CropSet.concatenate([train] + [train_looks] * SECOND_LOOK_REPEAT),
-                                          CropSet.concatenate([valid, valid_looks]), more, network.train())
+                                          CropSet.concatenate([valid, valid_looks]), more, network.train(),
+                                          teacher=teacher)
     return network, history, len(train_looks)

@@ -846,6 +846,28 @@ def test_a_missing_robot_checkpoint_is_called_missing(synth_dataset, tmp_path, c
     assert "none.pt: no such checkpoint" in lines[0] and "FileNotFoundError" not in lines[0], lines
 
 
+def test_a_robot_teacher_that_is_missing_not_a_crop_network_or_of_another_crop_size_is_refused_in_one_line(
+        synth_dataset, tmp_path, capsys):
+    import torch
+
+    from detector.crops.network import CropArchitecture, PoleCropNet
+    from detector.crops.train import save_checkpoint
+    from detector.crops.settings import CropTrainSettings
+
+    out = tmp_path / "robot"
+    other_size = save_checkpoint(PoleCropNet(CropArchitecture((16, 32), (8, 8), (2, 2), 8)), tmp_path / "small.pt",
+                                 [], CropTrainSettings())
+    torch.save({"kind": "something else"}, tmp_path / "other.pt")
+    for teacher, message in ((tmp_path / "none.pt", "none.pt: no such checkpoint"),
+                             (tmp_path / "other.pt", "other.pt: not a crop network checkpoint"),
+                             (other_size, "small.pt: its crop network looks at 16x32 crops, the one trained here at "
+                                          "24x48")):
+        lines = _refusal_lines(["train-robot", str(synth_dataset), "--out", str(out), "--teacher", str(teacher)],
+                               capsys)
+        assert message in lines[0] and "Error" not in lines[0], lines
+    assert not out.exists()
+
+
 def test_train_robot_with_no_epochs_asks_for_the_network_to_start_from(synth_dataset, tmp_path, capsys):
     """`--epochs 0` trains only on the second looks of a network or its preclassifier: without --weights there is
     none, and with no second-look or preclassifier epochs either there is nothing to train."""

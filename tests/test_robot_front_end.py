@@ -264,6 +264,53 @@ def test_the_crop_network_keeps_the_best_epoch_or_the_last_as_asked(tiny_crop_mo
         CropTrainSettings(second_look_epochs=-1)
 
 
+def test_the_distillation_targets_are_the_teacher_s_scores_not_the_labels(tiny_crop_model):
+    """What the student learns beside the labels is the teacher's class scores on each crop: they rank the classes as
+    the teacher does, and they are soft where a label is one-hot."""
+    import torch
+
+    from detector.crops.train import teacher_logits, tensors
+
+    _, crops, _, teacher = tiny_crop_model
+    images, classes, _ = tensors(crops)
+    targets = teacher_logits(teacher, images)
+    with torch.no_grad():
+        expected = teacher.eval()(images)[:, :NO_POLE + 1]
+    assert torch.allclose(targets, expected, atol=1e-5)
+    probabilities = torch.softmax(targets, dim=1)
+    one_hot = torch.nn.functional.one_hot(classes, NO_POLE + 1).float()
+    assert (probabilities - one_hot).abs().sum(dim=1).mean() > 0.1
+
+
+def test_a_student_learns_what_its_teacher_says_where_the_labels_say_otherwise(tiny_crop_model):
+    """A teacher sure that no crop holds a pole pulls a student trained on the same labelled crops away from poles:
+    the distillation loss reaches the training."""
+    import torch
+
+    from detector.crops.network import PoleCropNet
+    from detector.crops.settings import CropTrainSettings
+    from detector.crops.train import tensors, train_crop_network
+
+    _, crops, _, _ = tiny_crop_model
+    doubter = PoleCropNet(TINY)
+    with torch.no_grad():
+        final = doubter.head[-1]
+        final.weight[:NO_POLE + 1] = 0
+        final.bias[:NO_POLE + 1] = -8.0
+        final.bias[NO_POLE] = 8.0
+    settings = CropTrainSettings(epochs=2, batch=64, threads=1, keep="last")
+    images, classes, _ = tensors(crops)
+    poles = classes != NO_POLE
+
+    def pole_probability(teacher) -> float:
+        student, _ = train_crop_network(crops, crops, settings, PoleCropNet(TINY), log=lambda line: None,
+                                        teacher=teacher)
+        with torch.no_grad():
+            return float(torch.softmax(student(images[poles])[:, :NO_POLE + 1], dim=1)[:, :NO_POLE].sum(1).mean())
+
+    assert pole_probability(doubter) < pole_probability(None) - 0.05
+
+
 def test_train_robot_prints_and_keeps_what_it_made(synth_dataset, tmp_path, capsys):
     """`poles train-robot`'s summary is printed and kept in history.json, both reading back as one typed result."""
     from detector.cli import main
@@ -271,7 +318,7 @@ def test_train_robot_prints_and_keeps_what_it_made(synth_dataset, tmp_path, caps
 
     out = tmp_path / "robot"
     assert main(["train-robot", str(synth_dataset), "--out", str(out), "--epochs", "1", "--threads", "1",
-                 "--weights", str(ROBOT_WEIGHTS), "--second-look-epochs", "1"]) == 0
+                 "--weights", str(ROBOT_WEIGHTS), "--second-look-epochs", "1", "--teacher", str(ROBOT_WEIGHTS)]) == 0
     lines = capsys.readouterr().out.splitlines()
     printed = RobotTraining.from_json(json.loads("\n".join(lines[lines.index("{"):])))
     kept = read_record(out / "history.json", "robot training")
@@ -279,6 +326,7 @@ def test_train_robot_prints_and_keeps_what_it_made(synth_dataset, tmp_path, caps
     assert printed.epochs == len(kept["history"]) == 2 and printed.model == out / "poles-robot.onnx"
     assert [row["epoch"] for row in kept["history"]] == [1, 2] and printed.best_epoch.epoch == 2
     assert printed.second_look_crops > 0 and any(line.startswith("second looks: ") for line in lines)
+    assert printed.teacher == ROBOT_WEIGHTS and kept["teacher"] == str(ROBOT_WEIGHTS)
     assert isinstance(load_detector(printed.model), CropDetector) and 0 < printed.operating_conf < 1
     assert printed.preclassifier is not None and printed.preclassifier.kept_poles >= 0.99
     assert load_detector(printed.model).preclassifier.threshold == pytest.approx(printed.preclassifier.threshold)

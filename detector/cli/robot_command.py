@@ -25,6 +25,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     robot.add_argument("--out", type=Path, required=True,
                        help="run folder: poles-robot.pt, poles-robot.onnx, history.json, training_curves.png")
     robot.add_argument("--weights", type=Path, help="a poles-robot.pt to go on training from (default: from scratch)")
+    robot.add_argument("--teacher", type=Path,
+                       help="a poles-robot.pt whose class scores the new network learns beside the labels "
+                            "(distillation; e.g. detector/weights/poles-robot.pt, the shipped network)")
     robot.add_argument("--epochs", type=whole_number(0), default=DEFAULTS.epochs,
                        help=f"epochs over the crops (default {DEFAULTS.epochs}; 0 with --weights and "
                             "--second-look-epochs: only the second looks)")
@@ -52,6 +55,6 @@ def _train_robot(args: argparse.Namespace) -> int:
                                  second_look_epochs=args.second_look_epochs,
                                  preclassifier_epochs=args.preclassifier_epochs)
     result = train_robot_front_end(args.data, args.out, settings, args.weights, args.force,
-                                   protect=existing(*args.data, args.weights))
+                                   protect=existing(*args.data, args.weights, args.teacher), teacher=args.teacher)
     print(json.dumps(result.to_json(), indent=1))
     return 0

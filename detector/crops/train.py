@@ -1,6 +1,11 @@
 """Training the crop network on a two-core CPU: class cross-entropy on every crop, an L1 loss on the box of every
 pole crop, AdamW with a cosine schedule, horizontal flips and brightness changes; the epoch with the best validation
-score (pole crops named right with box IoU >= 0.5, minus no-pole crops taken for poles) is kept."""
+score (pole crops named right with box IoU >= 0.5, minus no-pole crops taken for poles) is kept.
+
+With a teacher (a trained crop network, larger as a rule), every crop's class scores also learn the teacher's: its
+softened probabilities on the un-augmented crop, run once before the first epoch, against the student's (Hinton's
+distillation: how much a window looks like each pole and like clutter, which a hard label does not say). The boxes
+learn from the labels alone."""
 from __future__ import annotations
 
 import math
@@ -27,6 +32,10 @@ BRIGHTNESS = (0.75, 1.25)
 #: With colour jitter ``j`` (``CropTrainSettings.colour_jitter``) each crop's channels are scaled by up to 1 +- j
 #: (white balance), its contrast and saturation by up to 1 +- 2j, and noise of ``NOISE_PER_JITTER * j`` added.
 NOISE_PER_JITTER = 0.1
+#: Distillation: the temperature both networks' class scores are softened by, and the weight of the loss against
+#: the teacher's scores next to the labels' (the squared temperature keeps its gradients the labels' size).
+DISTIL_TEMPERATURE = 2.0
+DISTIL_WEIGHT = 1.0
 
 
 @dataclass(frozen=True)
@@ -105,6 +114,23 @@ def loss_of(outputs: torch.Tensor, classes: torch.Tensor, boxes: torch.Tensor) -
     return loss
 
 
+@torch.no_grad()
+def teacher_logits(teacher: PoleCropNet, images: torch.Tensor, batch: int = 1024) -> torch.Tensor:
+    """The teacher's class scores (N, classes + 1) on the crops (N, 3, H, W in 0..1): the distillation targets."""
+    teacher.eval()
+    return torch.cat([teacher(images[i:i + batch])[:, :NO_POLE + 1] for i in range(0, len(images), batch)]) \
+        if len(images) else torch.zeros((0, NO_POLE + 1))
+
+
+def distillation_loss(student: torch.Tensor, teacher: torch.Tensor,
+                      temperature: float = DISTIL_TEMPERATURE) -> torch.Tensor:
+    """KL divergence of the student's softened class probabilities from the teacher's (both (N, classes + 1)
+    logits), times the squared temperature."""
+    return nn.functional.kl_div(nn.functional.log_softmax(student / temperature, dim=1),
+                                nn.functional.log_softmax(teacher / temperature, dim=1), reduction="batchmean",
+                                log_target=True) * temperature ** 2
+
+
 def generalised_iou(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     """GIoU of paired boxes (N, 4): IoU less the share of their enclosing box that neither covers, so boxes that do
     not overlap still pull together."""
@@ -145,13 +171,15 @@ def one_cycle(optimiser: torch.optim.Optimizer, rate: float, steps: int) -> torc
 
 
 def train_crop_network(train: CropSet, valid: CropSet, settings: CropTrainSettings = CropTrainSettings(),
-                       start: PoleCropNet | None = None, log=print) -> tuple[PoleCropNet, list[EpochResult]]:
-    """Train (or go on training ``start``) on ``train``; the best epoch on ``valid`` (or the last, as ``settings``
-    says) is returned with every epoch's figures."""
+                       start: PoleCropNet | None = None, log=print,
+                       teacher: PoleCropNet | None = None) -> tuple[PoleCropNet, list[EpochResult]]:
+    """Train (or go on training ``start``) on ``train``, learning ``teacher``'s class scores too where one is given;
+    the best epoch on ``valid`` (or the last, as ``settings`` says) is returned with every epoch's figures."""
     torch.manual_seed(settings.seed)
     torch.set_num_threads(settings.threads)
     network = start if start is not None else PoleCropNet()
     images, classes, boxes = tensors(train)
+    targets = teacher_logits(teacher, images) if teacher is not None else None
     optimiser = torch.optim.AdamW(network.parameters(), lr=settings.learning_rate, weight_decay=settings.weight_decay)
     schedule = one_cycle(optimiser, settings.learning_rate, settings.epochs * math.ceil(len(images) / settings.batch))
     generator = torch.Generator().manual_seed(settings.seed)
@@ -162,7 +190,10 @@ def train_crop_network(train: CropSet, valid: CropSet, settings: CropTrainSettin
         for i in range(0, len(order), settings.batch):
             batch = order[i:i + settings.batch]
             batch_images, batch_boxes = augment(images[batch], boxes[batch], generator, settings.colour_jitter)
-            loss = loss_of(network(batch_images), classes[batch], batch_boxes)
+            outputs = network(batch_images)
+            loss = loss_of(outputs, classes[batch], batch_boxes)
+            if targets is not None:
+                loss = loss + DISTIL_WEIGHT * distillation_loss(outputs[:, :NO_POLE + 1], targets[batch])
             optimiser.zero_grad()
             loss.backward()
             optimiser.step()
@@ -192,11 +223,12 @@ def save_checkpoint(network: PoleCropNet, path: Path, history: list[EpochResult]
     return Path(path)
 
 
-def load_checkpoint(path: Path) -> PoleCropNet:
-    """A crop network saved by :func:`save_checkpoint`; ValueError naming the file for anything else."""
+def load_checkpoint(path: Path, option: str = "--weights") -> PoleCropNet:
+    """A crop network saved by :func:`save_checkpoint`; ValueError naming the file for anything else (a missing one
+    says to leave out ``option``, the flag that named it)."""
     if not Path(path).is_file():
         raise FileNotFoundError(f"{path}: no such checkpoint - pass a poles-robot.pt written by `poles train-robot` "
-                                "(or leave out --weights to train from scratch)")
+                                f"(or leave out {option}{' to train from scratch' if option == '--weights' else ''})")
     try:
         checkpoint = torch.load(str(path), map_location="cpu", weights_only=False)
     except Exception as error:  # pickle, zip and runtime errors of files that are not checkpoints
