@@ -166,8 +166,7 @@ def plan_job(recipe: FinetuneRecipe, frames: SplitCounts, costs: UnitCosts, netw
     ``BudgetTooSmall`` names the least minutes that work here when even the least work does not fit."""
     budget = 60 * recipe.minutes * (1 - MARGIN) - taught_s
     held_out_all = frames.test or frames.valid
-    wanted = _Work(recipe.copies, recipe.rehearsal_frames(frames.train * (1 + recipe.copies)),
-                   recipe.evaluation_frames, held_out_all, frames.valid)
+    wanted = _wanted(recipe, frames)
     least = _Work(0, min(MIN_REHEARSAL_FRAMES, recipe.rehearsal_frames(frames.train)),
                   min(MIN_EVALUATION_FRAMES, recipe.evaluation_frames), min(MIN_TEAM_FRAMES, held_out_all),
                   min(MIN_TEAM_FRAMES, frames.valid))
@@ -193,6 +192,12 @@ def plan_job(recipe: FinetuneRecipe, frames: SplitCounts, costs: UnitCosts, netw
                    None if work.held_out >= held_out_all else work.held_out,
                    None if work.blend >= frames.valid else work.blend, seconds, _cuts(wanted, work, frames, recipe),
                    epoch, one_epoch, without_copies)
+
+
+def _wanted(recipe: FinetuneRecipe, frames: SplitCounts) -> _Work:
+    """The work the recipe asks for on these frames, before anything is cut to fit the minutes."""
+    return _Work(recipe.copies, recipe.rehearsal_frames(frames.train * (1 + recipe.copies)),
+                 recipe.evaluation_frames, frames.test or frames.valid, frames.valid)
 
 
 def _fitted(wanted: _Work, least: _Work, frames: SplitCounts, costs: UnitCosts, network: str,
@@ -325,8 +330,7 @@ def replan_after_training(plan: JobPlan, recipe: FinetuneRecipe, frames: SplitCo
     raised above the first plan's."""
     costs = replace(plan.costs, render=plan.costs.render * load, judge=max(judge_s, plan.costs.judge * load))
     held_out_all = frames.test or frames.valid
-    wanted = _Work(recipe.copies, recipe.rehearsal_frames(frames.train * (1 + recipe.copies)),
-                   recipe.evaluation_frames, held_out_all, frames.valid)
+    wanted = _wanted(recipe, frames)
     work = _Work(plan.copies, plan.rehearsal_frames, plan.evaluation_frames, plan.held_out_frames or held_out_all,
                  plan.blend_frames or frames.valid)
     least = replace(work, evaluation=min(MIN_EVALUATION_FRAMES, work.evaluation),

@@ -129,9 +129,9 @@ def _dataset_fingerprint(annotated: Path) -> str:
 def _stages(ledger: StageLedger, annotated: Path | None, out: Path, recipe: FinetuneRecipe, renames: dict[str, str],
             backdrops: tuple[Path, ...]) -> FinetuneStages:
     data, augmented, rehearsal, mixed = (out / name for name in ("dataset", "augmented", "rehearsal", "mixed"))
-    taught, teacher_key = None, None
+    taught, teacher_key, labelled = None, None, out / "teacher"
     if recipe.unlabelled:
-        unlabelled, labelled = Path(recipe.unlabelled), out / "teacher"
+        unlabelled = Path(recipe.unlabelled)
         teacher_key = stage_key(frames=_dataset_fingerprint(unlabelled), teacher=recipe.teacher,
                                 model=file_fingerprint(resolve_model(recipe.teacher)))
         seconds = 60 * recipe.minutes * TEACHING_SHARE
@@ -139,8 +139,8 @@ def _stages(ledger: StageLedger, annotated: Path | None, out: Path, recipe: Fine
                             lambda: _teach(unlabelled, labelled, recipe.teacher, seconds), TeacherLabels)
     key = stage_key(dataset=_dataset_fingerprint(annotated) if annotated else None, teacher=teacher_key,
                     renames=renames, seed=recipe.seed)
-    source = annotated or out / "teacher"
-    more = out / "teacher" if annotated and taught else None
+    source = annotated or labelled
+    more = labelled if annotated and taught else None
     intake = ledger.run("dataset", key, [data / "data.yaml"],
                         lambda: prepare_dataset(source, data, renames, recipe.seed, more), DatasetIntake)
     plan_key = stage_key(dataset=key, recipe=recipe.settings(), backdrops=len(backdrops))
