@@ -36,6 +36,20 @@ class StageRecord:
     ran: bool = True
 
 
+def late_note(job: str, minutes: float, total_s: float, stages: list[tuple[str, float, float]]) -> str | None:
+    """When a job given ``minutes`` took ``total_s``, more: by how much, and the (at most two) ``stages`` (name,
+    seconds taken, seconds planned) that ran furthest past their plan, in one line for the terminal; None when it
+    kept to its minutes. Every command with ``--minutes`` says it in these words."""
+    if total_s <= 60 * minutes:
+        return None
+    late = sorted(((taken - planned, name, taken, planned) for name, taken, planned in stages), reverse=True)
+    reasons = ", ".join(f"{name} took {taken:.0f} s where {planned:.0f} were planned"
+                        for excess, name, taken, planned in late[:2] if excess > 0)
+    return (f"{job} took {total_s / 60:.1f} minutes of the {minutes:g} asked for ({total_s / 60 - minutes:+.1f}): "
+            f"{reasons or 'no stage ran past its plan'} - a busy machine slows every stage; give more --minutes, "
+            "or run it when the machine is quiet")
+
+
 def stage_key(**inputs: Any) -> str:
     """Stable hash of a stage's inputs (settings, and the keys of the stages it reads from)."""
     text = json.dumps(inputs, sort_keys=True, default=str)

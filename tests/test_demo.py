@@ -159,6 +159,42 @@ def test_the_fast_demo_trains_for_what_the_other_stages_leave_of_its_whole_time(
     assert TINY.training_hours(1000) is None  # a budget without a whole time trains for its epochs
 
 
+def test_a_demo_whose_training_ran_late_cuts_the_stages_after_it_and_one_on_time_keeps_them():
+    """On pace the stages after the export keep every shot, walk second and seed; a training that ran five minutes
+    past its plan leaves less, and the shots, the walk and the seeds shrink, never under their least, with a line
+    that says what was cut."""
+    from detector.demo.budget import (AFTER_EXPORT_SHARE, BEFORE_TRAINING_S, BUDGETS, MIN_CALIBRATION_SHOTS,
+                                      MIN_COMPARE_SEEDS, MIN_WALK_S)
+
+    fast = BUDGETS["fast"]
+    on_pace = 60 * fast.whole_minutes - AFTER_EXPORT_SHARE * fast.after_training_s(BEFORE_TRAINING_S)
+    assert fast.after_export(on_pace, BEFORE_TRAINING_S) == (fast, None)
+    late, said = fast.after_export(on_pace + 60, BEFORE_TRAINING_S)
+    assert MIN_CALIBRATION_SHOTS < late.calibration_shots < fast.calibration_shots
+    assert MIN_WALK_S < late.walk_seconds < fast.walk_seconds and late.compare_seeds <= fast.compare_seeds
+    assert f"{late.calibration_shots} calibration shots (not {fast.calibration_shots})" in said
+    hopeless, _ = fast.after_export(60 * fast.whole_minutes + 300, BEFORE_TRAINING_S)
+    assert (hopeless.calibration_shots, hopeless.walk_seconds, hopeless.compare_seeds) == (
+        MIN_CALIBRATION_SHOTS, MIN_WALK_S, MIN_COMPARE_SEEDS)
+    assert TINY.after_export(10_000, 1.0) == (TINY, None)  # a budget without a whole time does all it planned
+
+
+def test_a_demo_that_ran_late_says_by_how_much_and_where():
+    from detector.demo.budget import BEFORE_TRAINING_S, BUDGETS
+    from detector.demo.pipeline import late_demo_note
+    from detector.stages import StageRecord
+
+    fast = BUDGETS["fast"]
+    cap_s = 3600 * fast.training_hours(BEFORE_TRAINING_S)
+    timings = [StageRecord("data", "k", "done", BEFORE_TRAINING_S), StageRecord("train yolov8n-seg", "k", "done", cap_s),
+               StageRecord("slam", "k", "done", 150.0), StageRecord("reused", "k", "done", 900.0, ran=False)]
+    assert late_demo_note(fast, timings, 60 * fast.whole_minutes) is None
+    slow = [*timings[:2], StageRecord("slam", "k", "done", 600.0)]
+    said = late_demo_note(fast, slow, BEFORE_TRAINING_S + cap_s + 600.0)
+    assert said.startswith("this demo took") and "the stages after training took 600 s" in said
+    assert late_demo_note(TINY, slow, 10_000.0) is None
+
+
 def test_the_demo_s_minutes_set_its_whole_time_and_too_few_are_refused():
     from detector.demo.budget import BUDGETS
 

@@ -15,6 +15,15 @@ BEFORE_TRAINING_S = 34.0
 AFTER_TRAINING_S = 200.0
 #: Training gets at least this long, however slow the machine.
 MIN_TRAINING_S = 120.0
+#: The share of the stages after training that come after the export (calibrate, evaluate, slam, speed), and the
+#: share of those that scales with the calibration shots and the SLAM walk, measured on a fast demo (`poles demo`,
+#: stages.json, two-core EPYC: training 33 s past its cap and export 34 s, then calibrate 23, evaluate 51, slam 130
+#: and speed 21 s: 225 of 292 s, of which 153 scale).
+AFTER_EXPORT_SHARE, SCALABLE_SHARE = 0.77, 0.68
+#: A demo re-planned after a late training keeps at least these: calibration shots, seconds of walk, seeds compared.
+MIN_CALIBRATION_SHOTS, MIN_WALK_S, MIN_COMPARE_SEEDS = 30, 30.0, 1
+#: A shortfall under this share of the plan is noise in the timings, not a reason to cut.
+REPLAN_TOLERANCE = 0.1
 
 
 @dataclass(frozen=True)
@@ -62,9 +71,34 @@ class Budget:
         training as it was before (at least ``MIN_TRAINING_S``)."""
         if self.whole_minutes is None:
             return self.train_hours
-        slowness = max(1.0, spent_s / BEFORE_TRAINING_S)
-        left_s = max(MIN_TRAINING_S, 60 * self.whole_minutes - spent_s - slowness * AFTER_TRAINING_S)
+        left_s = max(MIN_TRAINING_S, 60 * self.whole_minutes - spent_s - self.after_training_s(spent_s))
         return min(left_s / 3600, self.train_hours) if self.train_hours else left_s / 3600
+
+    @staticmethod
+    def after_training_s(before_s: float) -> float:
+        """What the stages after training are planned to take on a machine that took ``before_s`` for the stages
+        before it: ``AFTER_TRAINING_S``, slowed as much as those were (never sped up)."""
+        return max(1.0, before_s / BEFORE_TRAINING_S) * AFTER_TRAINING_S
+
+    def after_export(self, spent_s: float, before_s: float) -> tuple["Budget", str | None]:
+        """The stages after the export fitted again to what is left of ``whole_minutes`` once ``spent_s`` are spent
+        (training runs past its cap on a busy machine, and a slow one trains ``MIN_TRAINING_S`` whatever is left),
+        on a machine that took ``before_s`` for the stages before training: when less is left than they are planned
+        to take, fewer calibration shots, a shorter SLAM walk and fewer seeds compared (each at least its ``MIN_``),
+        with a line saying so; else this budget and None."""
+        left_s = 60 * self.whole_minutes - spent_s if self.whole_minutes is not None else math.inf
+        planned_s = AFTER_EXPORT_SHARE * self.after_training_s(before_s)
+        if left_s >= (1 - REPLAN_TOLERANCE) * planned_s:
+            return self, None
+        fixed_s = (1 - SCALABLE_SHARE) * planned_s
+        scale = max(0.0, (left_s - fixed_s) / (planned_s - fixed_s))
+        cut = replace(self, calibration_shots=max(MIN_CALIBRATION_SHOTS, round(self.calibration_shots * scale)),
+                      walk_seconds=max(MIN_WALK_S, round(self.walk_seconds * scale)),
+                      compare_seeds=max(MIN_COMPARE_SEEDS, round(self.compare_seeds * scale)))
+        return cut, (f"{spent_s / 60:.1f} of {self.whole_minutes:g} minutes spent after training and export, and the "
+                     f"stages after them need about {planned_s / 60:.1f} here: {cut.calibration_shots} calibration "
+                     f"shots (not {self.calibration_shots}), a {cut.walk_seconds:g} s walk (not "
+                     f"{self.walk_seconds:g}) and {cut.compare_seeds} seed(s) compared (not {self.compare_seeds})")
 
 
 BUDGETS = {

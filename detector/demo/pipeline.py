@@ -21,7 +21,7 @@ from detector.datasets import load_dataset
 from detector.datasets.check import check_dataset
 from detector.datasets.io import SplitCounts
 from detector.datasets.truth import load_camera_poses
-from detector.demo.budget import Budget
+from detector.demo.budget import BEFORE_TRAINING_S, Budget
 from detector.demo.report import write_report
 from detector.demo.results import (AgainstShipped, CheckSummary, DatasetSummary, DemoEvaluation, DemoResult, DemoSlam,
                                    DemoSpeed, EvaluatedFrontEnd, SlamRun, SpeedRow)
@@ -35,7 +35,7 @@ from detector.speed import engine, time_front_ends
 from detector.slam.comparison import BACKENDS, compare_backends
 from detector.slam.outputs import write_outputs
 from detector.slam.sequences import FrontEndSpec, image_sequences, sim_sequence
-from detector.stages import StageFailed, StageLedger, file_fingerprint, stage_key
+from detector.stages import StageFailed, StageLedger, StageRecord, file_fingerprint, late_note, stage_key
 from detector.synth.generate import SynthJob, generate_dataset
 from detector.training.starting_point import starting_point
 from detector.training.summary import TrainingSummary
@@ -57,6 +57,8 @@ MIN_TUNING_POLES = 200
 ROBOT = "shipped-robot"
 #: Held-out frames (with their camera poses) each front end is timed on, and passes over them after a warm-up one.
 SPEED_FRAMES, SPEED_REPEATS = 10, 2
+#: The stages before training, whose pace sets the plan of the stages after it.
+BEFORE_TRAINING = ("data", "check", "augment")
 
 
 def run_demo(out: Path, budget: Budget, seed: int = 0) -> int:
@@ -77,7 +79,24 @@ def run_demo(out: Path, budget: Budget, seed: int = 0) -> int:
     _print_timings(ledger)
     _print_headlines(results)
     console.print(f"report: {write_report(out, results, budget, ledger.timings())}")
+    late = late_demo_note(budget, ledger.timings(), time.perf_counter() - started)
+    if late:
+        console.print(f"[yellow]{late}")
     return 0
+
+
+def late_demo_note(budget: Budget, timings: list[StageRecord], total_s: float) -> str | None:
+    """When a demo given a whole time took ``total_s``, more: by how much, and which of the stages before training,
+    training and the stages after it ran past their plan (stages reused from an earlier call took no time)."""
+    if budget.whole_minutes is None:
+        return None
+    taken = {record.name: record.seconds for record in timings if record.ran}
+    before = sum(taken.get(name, 0.0) for name in BEFORE_TRAINING)
+    training = sum(seconds for name, seconds in taken.items() if name.startswith("train "))
+    return late_note("this demo", budget.whole_minutes, total_s, [
+        ("the stages before training", before, BEFORE_TRAINING_S),
+        ("training", training, 3600 * budget.training_hours(before)),
+        ("the stages after training", sum(taken.values()) - before - training, budget.after_training_s(before))])
 
 
 def _stages(ledger: StageLedger, out: Path, budget: Budget, seed: int, started: float) -> DemoResult:
@@ -91,7 +110,8 @@ def _stages(ledger: StageLedger, out: Path, budget: Budget, seed: int, started: 
     augment = ledger.run("augment", key, [augmented / "data.yaml"], lambda: augment_dataset(
         data, augmented, copies=budget.copies, seed=seed, preview=True, force=True), AugmentSummary)
     models, trainings, exports = {}, [], []
-    train_hours = budget.training_hours(time.perf_counter() - started)
+    before_s = time.perf_counter() - started
+    train_hours = budget.training_hours(before_s)
     for model in budget.models:
         start = _start_weights(model)
         train_key = stage_key(data=key, model=model, start=file_fingerprint(start), imgsz=budget.imgsz,
@@ -105,6 +125,9 @@ def _stages(ledger: StageLedger, out: Path, budget: Budget, seed: int, started: 
         exports.append(ledger.run(f"export {model}", export_key, [onnx], lambda: _export(
             trainings[-1].weights, onnx, budget, data), ExportReport))
         models[model] = (onnx, export_key)
+    budget, replanned = budget.after_export(time.perf_counter() - started, before_s)
+    if replanned:
+        console.print(f"[yellow]{replanned}")
     calibration_key = stage_key(models=[k for _, k in models.values()], shots=budget.calibration_shots, seed=seed)
     calibration = ledger.run("calibrate", calibration_key, [out / "calibration" / "calibration.json"],
                              lambda: _calibrate(out / "calibration", [p for p, _ in models.values()], budget, seed),

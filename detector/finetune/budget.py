@@ -18,6 +18,7 @@ from detector.datasets.io import SplitCounts
 from detector.datasets.model import Sample
 from detector.finetune.recipe import BLEND_SHARES, FinetuneRecipe
 from detector.records import JsonRecord
+from detector.stages import late_note
 
 #: The share of the minutes the plan keeps in hand for what it cannot foresee (a busy machine, a slow disk).
 MARGIN = 0.08
@@ -351,15 +352,8 @@ def overrun_note(plan: JobPlan, taken: dict[str, float], between_s: float) -> st
     """When the stages (``taken``) and the time between them (``between_s``: reports, loading) took longer in all
     than the minutes: by how much, and the stages that ran furthest past their plan; None when the job kept to its
     minutes."""
-    total = sum(taken.values()) + between_s
-    if total <= 60 * plan.minutes:
-        return None
-    late = sorted(((seconds - plan.planned(name), name, seconds) for name, seconds in taken.items()), reverse=True)
-    reasons = ", ".join(f"{name} took {seconds:.0f} s where {plan.planned(name):.0f} were planned"
-                        for excess, name, seconds in late[:2] if excess > 0)
-    return (f"this fine-tune took {total / 60:.1f} minutes of the {plan.minutes:g} asked for "
-            f"({total / 60 - plan.minutes:+.1f}): {reasons or 'no stage ran past its plan'} - a busy machine slows "
-            "every stage; give more --minutes, or run it when the machine is quiet")
+    return late_note("this fine-tune", plan.minutes, sum(taken.values()) + between_s,
+                     [(name, seconds, plan.planned(name)) for name, seconds in taken.items()])
 
 
 def describe(plan: JobPlan) -> str:
