@@ -21,7 +21,8 @@ from detector.atomic import write_json
 #: Kind of file -> its format number now. What each holds is listed in docs/commands.md ("Files and their formats").
 FORMATS: dict[str, int] = {
     "evaluation": 2,  # poles evaluate's metrics.json (2: TP/FP/FN/TN under "counts"; 1 had them at the top)
-    "finetune": 2,  # poles finetune's metrics.json (2: replan, the plan after training; the plan's epoch estimate)
+    "finetune": 3,  # poles finetune's metrics.json (2: replan, the plan after training; the plan's epoch estimate;
+    # 3: the teacher's disputed frames)
     "slam": 1,  # poles slam's metrics.json
     "slam map": 1,  # poles slam's map.json
     "slam comparison": 1,  # poles slam --compare's comparison.json

@@ -428,6 +428,42 @@ def test_the_teacher_keeps_only_frames_it_is_sure_of_and_labels_its_sure_poles(u
     assert len(load_dataset(tmp_path / "taught").split("test")) == taught.test == taught.kept // 7
 
 
+def test_the_robot_model_disputes_a_pole_the_teacher_names_otherwise_and_passes_one_named_alike(export):
+    from detector.crops.samples import label_boxes
+    from detector.finetune.teacher import names_otherwise
+    from naoslam.perception.detections import Detection
+
+    student = CropDetector("shipped-robot")
+    agreed = 0
+    for sample in load_dataset(export).samples:
+        frame = cv2.imread(str(sample.image))
+        for instance, box in zip(sample.instances, label_boxes(sample, frame.shape[1], frame.shape[0])):
+            if names_otherwise(student, frame, [Detection.from_box(instance.cls, 0.9, box)]):
+                continue  # the robot model names this labelled pole otherwise itself
+            other = next(name for name in student.classes if name != instance.cls)
+            assert names_otherwise(student, frame, [Detection.from_box(other, 0.9, box)])
+            assert names_otherwise(student, frame, [Detection.from_box(instance.cls, 0.9, box),
+                                                    Detection.from_box(other, 0.9, box)])
+            agreed += 1
+    assert agreed >= 5 and not names_otherwise(student, frame, [])
+
+
+def test_a_frame_whose_pole_the_robot_model_names_otherwise_is_left_out_as_disputed(unlabelled, tmp_path,
+                                                                                    monkeypatch):
+    """A checker that disputes every pole (names_otherwise stubbed: the test above holds the real one) leaves only the
+    pole-free frames, and counts the rest as disputed."""
+    from detector.finetune import teacher
+
+    alone = teacher.teacher_labels(unlabelled, tmp_path / "alone", "shipped", 0.7, seconds=600, progress=False)
+    monkeypatch.setattr(teacher, "names_otherwise", lambda student, frame, found: bool(found))
+    checked = teacher.teacher_labels(unlabelled, tmp_path / "checked", "shipped", 0.7, seconds=600,
+                                     checker="shipped-robot", progress=False)
+    pole_free = {s.image.name for s in load_dataset(tmp_path / "alone").samples if not s.instances}
+    assert {s.image.name for s in load_dataset(tmp_path / "checked").samples} == pole_free
+    assert alone.disputed == 0 and checked.disputed == alone.kept - alone.pole_free > 0
+    assert checked.unsure == alone.unsure + checked.disputed and checked.poles == 0
+
+
 def test_the_teacher_labels_every_so_many_frames_to_keep_to_its_seconds(unlabelled, tmp_path):
     from detector.finetune.teacher import TIMED_FRAMES, teacher_labels
 

@@ -132,11 +132,13 @@ def _stages(ledger: StageLedger, annotated: Path | None, out: Path, recipe: Fine
     taught, teacher_key, labelled = None, None, out / "teacher"
     if recipe.unlabelled:
         unlabelled = Path(recipe.unlabelled)
+        checker = recipe.start.shipped  # the robot model the frames teach checks the teacher's classes
         teacher_key = stage_key(frames=_dataset_fingerprint(unlabelled), teacher=recipe.teacher,
-                                model=file_fingerprint(resolve_model(recipe.teacher)))
+                                model=file_fingerprint(resolve_model(recipe.teacher)),
+                                checker=file_fingerprint(resolve_model(checker)))
         seconds = 60 * recipe.minutes * TEACHING_SHARE
         taught = ledger.run("teacher", teacher_key, [labelled / "data.yaml"],
-                            lambda: _teach(unlabelled, labelled, recipe.teacher, seconds), TeacherLabels)
+                            lambda: _teach(unlabelled, labelled, recipe.teacher, checker, seconds), TeacherLabels)
     key = stage_key(dataset=_dataset_fingerprint(annotated) if annotated else None, teacher=teacher_key,
                     renames=renames, seed=recipe.seed)
     source = annotated or labelled
@@ -204,13 +206,16 @@ def _plan(data: Path, recipe: FinetuneRecipe, backdrops: tuple[Path, ...], taugh
     return plan_job(recipe, frames, costs, recipe.start.network, taught_s)
 
 
-def _teach(unlabelled: Path, folder: Path, teacher: str, seconds: float) -> TeacherLabels:
+def _teach(unlabelled: Path, folder: Path, teacher: str, checker: str, seconds: float) -> TeacherLabels:
     """The unlabelled frames labelled by ``teacher`` where it is sure (the shipped model at the threshold of its 95 %
-    precision, another at its own threshold), in about ``seconds``; refused when it is sure of too few."""
-    taught = teacher_labels(unlabelled, folder, teacher, SHIPPED_SURE_CONF if teacher == "shipped" else None, seconds)
-    every = f", every {taught.stride}th frame to keep to --minutes" if taught.stride > 1 else ""
+    precision, another at its own threshold) and ``checker`` names its poles alike, in about ``seconds``; refused
+    when it is sure of too few."""
+    taught = teacher_labels(unlabelled, folder, teacher, SHIPPED_SURE_CONF if teacher == "shipped" else None, seconds,
+                            checker)
+    every = f", one in {taught.stride} to keep to --minutes" if taught.stride > 1 else ""
     console.print(f"the teacher labelled {taught.kept} of {taught.frames} frames{every} ({taught.poles} poles, "
-                  f"{taught.pole_free} without; {taught.unsure} left out where it was unsure), {taught.test} held out")
+                  f"{taught.pole_free} without; {taught.unsure} left out where it was unsure, {taught.disputed} of "
+                  f"them where the robot model named a pole otherwise), {taught.test} held out")
     if taught.kept - taught.test < 2:
         raise ValueError(f"{unlabelled}: the teacher is sure of {taught.kept} of its {taught.frames} frames, too few "
                          "to train on - record more frames, or label some and pass them as the export")
