@@ -186,7 +186,8 @@ def test_a_demo_that_ran_late_says_by_how_much_and_where():
 
     fast = BUDGETS["fast"]
     cap_s = 3600 * fast.training_hours(BEFORE_TRAINING_S)
-    timings = [StageRecord("data", "k", "done", BEFORE_TRAINING_S), StageRecord("train yolov8n-seg", "k", "done", cap_s),
+    timings = [StageRecord("data", "k", "done", BEFORE_TRAINING_S),
+               StageRecord("train yolov8n-seg", "k", "done", cap_s),
                StageRecord("slam", "k", "done", 150.0), StageRecord("reused", "k", "done", 900.0, ran=False)]
     assert late_demo_note(fast, timings, 60 * fast.whole_minutes) is None
     slow = [*timings[:2], StageRecord("slam", "k", "done", 600.0)]

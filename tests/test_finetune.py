@@ -481,7 +481,9 @@ def test_unlabelled_frames_alone_fine_tune_the_robot_model_and_the_report_says_w
     assert stages.dataset.frames.train + stages.dataset.frames.valid + stages.dataset.frames.test == \
         stages.teacher.kept
     assert stages.plan.seconds["teacher"] > 0 and stages.export.fp32.is_file()
-    assert "Unlabelled frames" in (tmp_path / "run" / "report.html").read_text()
+    report = (tmp_path / "run" / "report.html").read_text()
+    assert "Unlabelled frames" in report and f"({stages.teacher.disputed}) where the robot model named" in report
+    assert "Every 7th kept frame" in report and "{" not in report.split("Unlabelled frames")[1].split("</p>")[0]
     both = prepare_dataset(export, tmp_path / "both", {}, 0, more_train=tmp_path / "run" / "teacher")
     assert both.frames.train == len(load_dataset(export).split("train")) + stages.teacher.kept
     held_out = Path(shutil.copytree(export, tmp_path / "held-out"))  # a team that labelled only its test frames

@@ -99,7 +99,7 @@ def _data(stages: FinetuneStages) -> str:
         f"({html.escape(taught.teacher)}, sure at {taught.sure_conf:.2f}) labelled {taught.kept} ({taught.poles} "
         f"poles, {taught.pole_free} frames without one) and left {taught.unsure} out: where a detection lay between "
         f"{taught.floor_conf:.2f} and {taught.sure_conf:.2f}, or ({taught.disputed}) where the robot model named one "
-        "of its poles another landmark. Every {TEST_EVERY}th kept frame ({taught.test}) was "
+        f"of its poles another landmark. Every {TEST_EVERY}th kept frame ({taught.test}) was "
         "held out: judged against the teacher's labels, those figures say how far the robot model agrees with its "
         "teacher, not with the truth.</p>")
     return (f"<h2>Your frames</h2>{teacher}<p>train {frames.train}, valid {frames.valid}{split_note}, test "

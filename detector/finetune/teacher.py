@@ -5,9 +5,10 @@ The teacher keeps only what it is sure of: a frame is kept when each of its dete
 in between is left out, since its label would be a guess. A kept frame without a sure pole is a pole-free frame: the
 teacher saw nothing there even at ``FLOOR_CONF``. With a ``checker`` (the robot model the frames will teach), a
 frame is left out too where the checker's crop network names one of the teacher's sure poles another landmark: at a
-venue's own light the two err on different poles, and a class both name is far more often right. Every ``TEST_EVERY``-th kept frame (spread over the recording) is
-held out as the test split, so a fine-tune on unlabelled frames alone is still judged on frames it never trained on
-(against the teacher's labels: agreement with the teacher, not truth).
+venue's own light the two err on different poles, and a class both name is far more often right. Every
+``TEST_EVERY``-th kept frame (spread over the recording) is held out as the test split, so a fine-tune on unlabelled
+frames alone is still judged on frames it never trained on (against the teacher's labels: agreement with the
+teacher, not truth).
 """
 from __future__ import annotations
 
@@ -67,9 +68,8 @@ def teacher_labels(source: Path, out: Path, teacher: str, sure_conf: float | Non
     """Label the frames of ``source`` (a folder, subfolders too, or a video) with ``teacher`` into a YOLOv8 dataset
     at ``out`` (train and test splits), keeping only the frames it is sure of (at ``sure_conf``; None: the
     teacher's own threshold) and whose sure poles ``checker`` (a robot model, or None) names alike; returns what it
-    kept. Once the first
-    ``TIMED_FRAMES`` are labelled, every so many frames are labelled from then on, evenly over the recording, so
-    the whole takes about ``seconds``."""
+    kept. Once the first ``TIMED_FRAMES`` are labelled, every so many frames are labelled from then on, evenly over
+    the recording, so the whole takes about ``seconds``."""
     total, _, frames = frames_in(source, subfolders=True)
     detector = load_detector(teacher, conf=FLOOR_CONF)
     student = CropDetector(checker) if checker is not None else None
