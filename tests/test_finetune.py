@@ -8,6 +8,7 @@ import hashlib
 import json
 import re
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -18,9 +19,9 @@ from detector.datasets.io import SplitCounts, load_dataset
 from detector.evaluation.results import Counts, FrameCounts
 from detector.finetune.blend import BlendScore, frame_errors, frames_against, pick_share
 from detector.finetune.intake import prepare_dataset
-from detector.finetune.budget import (MARGIN, MIN_TRAINING_S, BudgetTooSmall, UnitCosts, machine_load,
-                                     overrun_note, plan_job, replan_after_training,
-                                     training_minutes)
+from detector.finetune.budget import (CROP_EPOCH_PER_JUDGED_FRAME, MARGIN, MIN_TRAINING_S, PREPARING_SHARE,
+                                     BudgetTooSmall, UnitCosts, machine_load, overrun_note, plan_job,
+                                     replan_after_training, training_minutes)
 from detector.finetune.pipeline import run_finetune
 from detector.finetune.recipe import BLEND_SHARES, DEFAULT_BLEND_SHARE, FinetuneRecipe
 from detector.finetune.results import FinetuneResult
@@ -316,6 +317,22 @@ def test_a_budget_that_buys_less_than_one_pass_says_so_with_the_budget_that_buys
     assert plan_job(FinetuneRecipe(minutes=fewer, copies=0), frames, COSTS, "yolo").short_of_an_epoch() is None
     assert plan_job(FinetuneRecipe(minutes=fewer - 0.5, copies=0), frames, COSTS, "yolo").short_of_an_epoch()
     assert plan_job(FinetuneRecipe(model="robot", minutes=5), frames, COSTS, "crops").short_of_an_epoch() is None
+
+
+def test_the_crop_networks_plan_gives_rehearsal_the_time_its_epoch_cap_leaves():
+    """The robot model's 30 epochs take less than the training's share: the plan renders more rehearsal frames, as
+    many as still leave the capped training its time; where the epochs need the whole share it keeps the share."""
+    recipe = FinetuneRecipe(model="robot", minutes=10, copies=0, rehearsal_share=0.9)
+    frames = SplitCounts(352, 88, 73)  # a 1,000-frame recording the teacher kept half of (the rendered venue)
+    quick = UnitCosts(decode=0.002, augment=0.05, render=0.36, judge=0.007, workers=2)  # a two-core EPYC
+    plan = plan_job(recipe, frames, quick, "crops")
+    budget = 60 * 10 * (1 - MARGIN)
+    training = 30 * (352 + plan.rehearsal_frames) * CROP_EPOCH_PER_JUDGED_FRAME * quick.judge
+    assert plan.seconds["rehearsal"] > PREPARING_SHARE * budget
+    assert training <= plan.seconds["train"] < training + 30 * CROP_EPOCH_PER_JUDGED_FRAME * quick.judge + 1
+    assert plan.rehearsal_frames < recipe.rehearsal_frames(352)
+    slow_epochs = plan_job(recipe, frames, replace(quick, judge=0.07), "crops")
+    assert slow_epochs.seconds["rehearsal"] <= PREPARING_SHARE * budget < plan.seconds["rehearsal"]
 
 
 def test_a_job_that_ran_late_says_by_how_much_and_which_stage():
