@@ -243,14 +243,18 @@ def _rehearsal_the_epochs_leave(work: _Work, wanted: _Work, frames: SplitCounts,
 
 def _crop_training_seconds(work: _Work, frames: SplitCounts, costs: UnitCosts, epochs: int) -> float:
     """The crop network's estimated seconds for ``epochs`` passes over ``work``'s training frames."""
-    trained = frames.train * (1 + work.copies) + work.rehearsal
-    return epochs * trained * CROP_EPOCH_PER_JUDGED_FRAME * costs.judge
+    return epochs * _trained_frames(work, frames) * CROP_EPOCH_PER_JUDGED_FRAME * costs.judge
 
 
 def _epoch_seconds(work: _Work, frames: SplitCounts, costs: UnitCosts) -> float:
     """The accurate model's estimated seconds for one pass over ``work``'s training frames."""
-    trained = frames.train * (1 + work.copies) + work.rehearsal
-    return round(trained * TRAINING_PER_JUDGED_FRAME * costs.judge, 1)
+    return round(_trained_frames(work, frames) * TRAINING_PER_JUDGED_FRAME * costs.judge, 1)
+
+
+def _trained_frames(work: _Work, frames: SplitCounts) -> int:
+    """The frames one training pass of ``work`` goes over: the team's train frames, their augmented copies and the
+    rehearsal."""
+    return frames.train * (1 + work.copies) + work.rehearsal
 
 
 def _minutes_for_one_epoch(wanted: _Work, least: _Work, frames: SplitCounts, costs: UnitCosts,
@@ -327,7 +331,7 @@ def _seconds(work: _Work, frames: SplitCounts, costs: UnitCosts, network: str,
     """Each stage's estimated seconds but training's own, for ``work`` on an export of ``frames``."""
     total = frames.train + frames.valid + frames.test
     parallel = max(costs.workers, 1)
-    trained = frames.train * (1 + work.copies) + work.rehearsal
+    trained = _trained_frames(work, frames)
     if network == "crops":
         training_start = TRAINING_START_S[network] + CROP_PASS * costs.decode * (trained + work.blend)
     else:  # Ultralytics validates on the valid frames the blend is scored on after the last epoch
